@@ -1,0 +1,98 @@
+// insitu: the operator's command line. Runs job files against the machine they name.
+//   insitu run JOB.yaml [--out DIR] [--set dotted.key=value ...]
+// Exit codes: 0 success, 2 bad input (job file, --set, calibration file), 1 failure while
+// running (the report says what), 130 interrupted.
+#include <atomic>
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "insitu/core/log.h"
+#include "insitu/job/job_file.h"
+#include "insitu/job/runner.h"
+
+#ifndef INSITU_VERSION
+#define INSITU_VERSION "0.0.0"
+#endif
+
+namespace {
+
+std::atomic<bool> g_cancel{false};
+
+void OnSignal(int) { g_cancel.store(true); }
+
+int ExitCodeFor(const insitu::Status& st) {
+  switch (st.code()) {
+    case insitu::StatusCode::kInvalidArgument:
+    case insitu::StatusCode::kParseError:
+    case insitu::StatusCode::kNotFound:
+    case insitu::StatusCode::kOutOfRange:
+    case insitu::StatusCode::kFailedPrecondition:
+      return 2;
+    case insitu::StatusCode::kCancelled:
+      return 130;
+    default:
+      return 1;
+  }
+}
+
+int Run(const std::string& job_path, const std::string& out_dir,
+        const std::vector<std::string>& sets) {
+  auto job = insitu::job::LoadJobFile(job_path, sets);
+  if (!job.ok()) {
+    std::fprintf(stderr, "insitu: %s\n", job.status().message().c_str());
+    return ExitCodeFor(job.status());
+  }
+  insitu::job::RunOptions options;
+  options.out_dir = out_dir.empty()
+                        ? "insitu-out/" + std::filesystem::path(job_path).stem().string()
+                        : out_dir;
+  options.cancel = &g_cancel;
+  std::signal(SIGINT, OnSignal);
+  std::signal(SIGTERM, OnSignal);
+  auto report = insitu::job::RunJob(*job, options);
+  if (!report.ok()) {
+    std::fprintf(stderr, "insitu: %s\n", report.status().message().c_str());
+    return ExitCodeFor(report.status());
+  }
+  const std::filesystem::path dir(options.out_dir);
+  std::printf("report: %s\n", (dir / "report.json").c_str());
+  for (const auto& [name, path] : report->artifacts) {
+    std::printf("%s: %s\n", name.c_str(), (dir / path).c_str());
+  }
+  for (const std::string& w : report->warnings) std::printf("warning: %s\n", w.c_str());
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"insitu: measure-then-mark with a 3D galvo scan head and a side camera"};
+  app.set_version_flag("--version", std::string("insitu ") + INSITU_VERSION);
+  std::string log_level = "info";
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off")
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "off"}));
+  app.require_subcommand(1);
+
+  CLI::App* run = app.add_subcommand("run", "run a job file (YAML) on the machine it names");
+  std::string job_path, out_dir;
+  std::vector<std::string> sets;
+  run->add_option("job", job_path, "job file")->required();
+  run->add_option("--out", out_dir, "output folder (default insitu-out/<job name>)");
+  run->add_option("--set", sets, "override a job key: dotted.key=value (repeatable)")
+      ->take_all()
+      ->allow_extra_args(false);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  insitu::SetLogLevel(log_level);
+  if (run->parsed()) return Run(job_path, out_dir, sets);
+  return 2;
+}

@@ -1,0 +1,29 @@
+// The scanned point cloud: points in the galvo (= world) frame, mm, with where each came from.
+// Stored as plain structs; PCL is used behind SaveCloudPly only.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "insitu/core/status.h"
+
+namespace insitu::geometry {
+
+struct CloudPoint {
+  Eigen::Vector3f point_in_galvo;  // mm
+  float intensity = 0.0f;          // stripe peak, gray levels
+  int32_t line = 0;                // scan line index
+  float pixel_u = 0.0f;            // stripe centre in the frame
+  float pixel_v = 0.0f;
+};
+
+using Cloud = std::vector<CloudPoint>;
+
+// Binary PLY (x, y, z, intensity) through pcl::io::savePLYFile. Errors: device_error naming the
+// path.
+Status SaveCloudPly(const Cloud& cloud, const std::string& path);
+
+}  // namespace insitu::geometry

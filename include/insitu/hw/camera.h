@@ -1,0 +1,37 @@
+// The camera as the job layer sees it (simulator or GigE Vision through Aravis).
+#pragma once
+
+#include <string>
+
+#include "insitu/core/frame.h"
+#include "insitu/core/status.h"
+
+namespace insitu::hw {
+
+struct CameraInfo {
+  std::string model;
+  std::string serial;
+  int sensor_width_px = 0;   // full sensor, unbinned
+  int sensor_height_px = 0;
+  int bit_depth = 8;
+};
+
+class Camera {
+ public:
+  Camera() = default;
+  virtual ~Camera() = default;
+  // A Camera owns a stream; copies would fight over it.
+  Camera(const Camera&) = delete;
+  Camera& operator=(const Camera&) = delete;
+
+  virtual CameraInfo info() const = 0;
+  // Errors: out_of_range with the allowed range.
+  virtual Status SetExposure(double exposure_us) = 0;
+  virtual Status SetGain(double gain_db) = 0;
+  // Pixels of the sensor averaged into one, per axis (1, 2 or 4).
+  virtual Status SetBinning(int binning) = 0;
+  // Exposes once and returns the frame. Errors: device_error (timeout, lost packets).
+  virtual Result<Frame> Grab() = 0;
+};
+
+}  // namespace insitu::hw

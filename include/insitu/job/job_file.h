@@ -1,0 +1,46 @@
+// Job files: what an operator writes and `insitu run` executes.
+//
+// A job file is YAML with a `job:` kind and the sections that kind needs. `world:` (simulator
+// backend) names a world file (config/worlds/); relative paths resolve against the job file's
+// folder. `--set dotted.key=value` overrides any key of the job, and keys under `world.` go to
+// the world document, so `--set world.camera.k1=-0.08` works. Every error names the file, the
+// line and the key (or the --set that gave the value).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "insitu/core/config.h"
+#include "insitu/core/status.h"
+#include "insitu/hw/machine.h"
+#include "insitu/sim/world_options.h"
+#include "insitu/vision/stripe.h"
+
+namespace insitu::job {
+
+struct LoadedJob {
+  std::string kind;     // "scan", ...
+  std::string path;     // the job file
+  std::string folder;   // its folder, for relative paths
+  ConfigNode root;      // the job document, --set applied
+  ConfigNode world;     // the world document (undefined if the job names none), --set applied
+};
+
+// Reads a job file, expands `world:`, applies the --set overrides ("key=value" each).
+Result<LoadedJob> LoadJobFile(const std::string& path, const std::vector<std::string>& sets);
+
+// Resolves a path from a job file: absolute stays, relative is taken from `folder`.
+std::string ResolvePath(const std::string& folder, const std::string& path);
+
+// Section readers: fill the Options from a strict reader and validate them at the right line.
+void ReadWorld(ConfigReader& r, sim::WorldOptions* world);
+void ReadStripeOptions(ConfigReader& r, vision::StripeOptions* options);
+
+// `machine:` section: backend name, calibration file; the world comes from `world:`.
+struct MachineSpec {
+  hw::MachineConfig config;
+  std::string calibration_path;  // resolved
+};
+void ReadMachine(ConfigReader& root, const std::string& folder, MachineSpec* spec);
+
+}  // namespace insitu::job

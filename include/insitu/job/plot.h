@@ -1,0 +1,36 @@
+// Line plots written as PNG (the figures jobs leave next to their reports). OpenCV draws them;
+// no OpenCV type leaves plot.cc.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "insitu/core/status.h"
+
+namespace insitu::job {
+
+struct PlotSeries {
+  std::string label;
+  std::vector<double> x, y;  // NaN y values break the line
+  int rgb = 0x1f77b4;
+};
+
+struct PlotSpec {
+  std::string title;
+  std::string x_label;
+  std::string y_label;
+  std::vector<PlotSeries> series;
+  std::vector<double> reference_y;             // horizontal dashed lines (tolerance bands)
+  std::optional<std::pair<double, double>> y_range;  // else from the data
+  int width_px = 1100;
+  int height_px = 650;
+};
+
+Status SavePlotPng(const PlotSpec& spec, const std::string& path);
+
+// Distinct colours for series i = 0, 1, ...
+int PlotColor(int i);
+
+}  // namespace insitu::job

@@ -1,0 +1,57 @@
+// The scan: the galvo sweeps its pointer as a line at x = x_i (i = 0, 1, ...) along y, the
+// camera takes one frame per line, the stripe centres are extracted and triangulated against
+// the line's light plane (seed 000 sec. 2.1 method 1), giving a point cloud in the galvo frame.
+#pragma once
+
+#include <atomic>
+#include <functional>
+
+#include "insitu/calib/calibration.h"
+#include "insitu/core/status.h"
+#include "insitu/geometry/cloud.h"
+#include "insitu/hw/machine.h"
+#include "insitu/vision/stripe.h"
+
+namespace insitu::job {
+
+struct ScanOptions {
+  double x_start_mm = -14.0;       // first line
+  double x_end_mm = 14.0;          // last line (inclusive when on the spacing grid)
+  double line_spacing_mm = 0.5;    // seed 000 sec. 3.2
+  double y_start_mm = -50.0;       // line ends
+  double y_end_mm = 50.0;
+  double focus_z_mm = 0.0;         // pointer focus height
+  double speed_mm_per_s = 5000.0;  // seed 000 sec. 3.2
+  double settle_ms = 5.0;          // wait after starting a line before exposing
+  double exposure_ms = 50.0;       // seed 000 sec. 3.2
+  double gain_db = 0.0;
+  int binning = 1;
+
+  Status Validate() const;
+  int line_count() const;
+  double line_x(int i) const { return x_start_mm + i * line_spacing_mm; }
+};
+
+struct ScanStats {
+  int lines = 0;
+  int64_t scan_lines_examined = 0;  // columns (or rows) over all frames
+  int64_t valid = 0, none = 0, saturated = 0, two_peaks = 0, too_wide = 0;
+  int64_t rejected_geometry = 0;     // valid centre whose ray misses the light plane
+  double machine_time_s = 0.0;       // on the machine's clock
+  double extract_time_ms = 0.0;      // wall time in the stripe extractor, all frames
+};
+
+struct ScanOutput {
+  geometry::Cloud cloud;
+  ScanStats stats;
+};
+
+// Runs the scan on `machine` (the pointer is stopped on every exit path). `progress(done,
+// total)` is called after each line; `cancel` stops between lines with status cancelled.
+Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
+                           const vision::StripeOptions& stripe,
+                           const calib::CalibrationSet& calibration,
+                           const std::function<void(int, int)>& progress = {},
+                           const std::atomic<bool>* cancel = nullptr);
+
+}  // namespace insitu::job

@@ -1,0 +1,144 @@
+// The simulated world: every physical effect is a named parameter with a realistic default.
+// docs/simulator.md says where each default comes from. Frames: the world frame is the galvo
+// frame (seed 000 sec. 2.1: world and galvo coordinates coincide): origin at the centre of the
+// scan field on the focal plane of the objective (dynamic focus at 0), z up toward the scan
+// head, x and y the galvo axes. Lengths in mm, angles in degrees unless a name says otherwise.
+//
+// These structs are the *truth*. Only the simulator reads them; the reconstruction sees images,
+// commands and its own calibration files.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "insitu/core/status.h"
+
+namespace insitu::sim {
+
+// Geometry of a two-mirror scan head with an f-theta (or telecentric) objective.
+struct ScanOpticsGeometry {
+  double focal_length_mm = 255.0;        // f-theta: image height r = f * theta
+  double mirror_separation_mm = 16.0;    // X mirror to Y mirror along the beam
+  double exit_pupil_height_mm = 310.0;   // chief rays leave as if from this height
+  // Exit-pupil (chief-ray) aberration: the apparent source of chief rays moves down with
+  // field angle, L(theta) = L / (1 + pupil_aberration * (theta / 0.2 rad)^2).
+  double pupil_aberration = 0.03;
+  bool telecentric = false;              // chief rays parallel to z
+
+  Status Validate() const;
+};
+
+struct BeamOptions {
+  double wavelength_nm = 680.0;
+  double power_mw = 0.15;
+  double waist_diameter_mm = 0.4;  // 1/e^2 diameter at the focus
+  double m2 = 1.5;                 // beam quality factor
+
+  Status Validate() const;
+};
+
+struct ScanHeadOptions {
+  ScanOpticsGeometry optics;           // as built (the truth)
+  ScanOpticsGeometry design;           // what the head's own correction table assumes
+  double x_zero_offset_mrad = 0.0;     // mechanical zero error of the X mirror (optical angle)
+  double y_zero_offset_mrad = 0.0;
+  double y_mirror_height_mm = 355.0;   // height of the Y-mirror reflection point (seed's point a)
+  double field_half_size_mm = 70.0;    // commands beyond +-this are refused
+  double focus_range_mm = 25.0;        // dynamic focus travel +-
+  double tracking_lag_ms = 0.16;       // first-order lag of the mirrors behind the command
+  double clock_us = 10.0;              // list clock
+  BeamOptions pointer;                 // red pointer (class 2)
+  BeamOptions marking{1064.0, 30000.0, 0.040, 1.3};  // fibre marking laser
+
+  Status Validate() const;
+};
+
+struct CameraOptions {
+  std::string model = "VH-5MG";
+  std::string serial = "SIM-0001";
+  int width_px = 2448;
+  int height_px = 2048;
+  double pixel_pitch_um = 3.45;
+  double lens_focal_length_mm = 15.0;
+  std::string lens = "FV1520";
+  std::array<double, 2> principal_point_offset_px{6.0, -4.0};  // from the sensor centre
+  double k1 = -0.06, k2 = 0.08, p1 = 0.0002, p2 = -0.0001, k3 = 0.0;  // Brown-Conrady
+  std::array<double, 3> position_mm{-182.0, 1.5, 299.0};  // entrance pupil in the world
+  std::array<double, 3> look_at_mm{0.6, -0.4, 0.0};       // point on the optical axis
+  double roll_deg = 0.3;                                  // about the optical axis
+  double f_number = 11.0;
+  double quantum_efficiency = 0.42;   // at 680 nm
+  double full_well_e = 10000.0;
+  double read_noise_e = 8.0;
+  double dark_current_e_per_s = 20.0;
+  double gain_db = 0.0;
+  int bit_depth = 8;                  // 8 or 12
+  double exposure_ms = 50.0;          // initial setting; jobs set their own
+  bool noise = true;                  // shot, read and dark noise
+
+  Status Validate() const;
+};
+
+struct LightOptions {
+  double ambient_lux = 300.0;        // room light on the part
+  double speckle_contrast = 0.2;     // std/mean of the stripe intensity from speckle
+  double speckle_grain_px = 0.0;     // 0: from wavelength and f-number (1.22 lambda N)
+  bool shadows = true;               // the part blocks the beam and the camera's view
+
+  Status Validate() const;
+};
+
+struct PartOptions {
+  std::string kind = "step_gauge";   // none | plane | step_gauge | arc | insert
+  std::array<double, 2> position_mm{0.0, 0.0};  // centre of the footprint on the stage
+  double rotation_deg = 0.0;                    // about z
+  double albedo = 0.45;                         // diffuse reflectance at 680 nm
+  // plane: a plate of the given thickness covering the footprint
+  double plane_thickness_mm = 2.0;
+  std::array<double, 2> plane_size_mm{120.0, 120.0};
+  // step_gauge: steps side by side along x, each the full length along y
+  double gauge_length_mm = 80.0;
+  double gauge_step_width_mm = 5.0;
+  std::vector<double> gauge_heights_mm{3.0, 5.0, 10.0, 15.0};
+  // arc: cylindrical crown along y over a footprint width (x) x length (y)
+  double arc_width_mm = 40.0;
+  double arc_length_mm = 40.0;
+  double arc_height_mm = 11.5;
+  double arc_edge_height_mm = 3.0;
+  // insert: equilateral triangle with rounded corners, rake band and a central hole
+  double insert_edge_mm = 16.5;        // side of the sharp triangle
+  double insert_corner_radius_mm = 0.2;
+  double insert_thickness_mm = 4.68;
+  double insert_hole_diameter_mm = 3.8;
+  double insert_rake_deg = 10.0;
+  double insert_rake_land_mm = 1.5;
+
+  Status Validate() const;
+};
+
+struct StageOptions {
+  double z_mm = 0.0;              // top of the plate at start
+  double min_z_mm = -20.0;
+  double max_z_mm = 20.0;
+  double speed_mm_per_s = 10.0;
+  double plate_albedo = 0.12;     // black anodised aluminium
+  double plate_size_mm = 400.0;
+
+  Status Validate() const;
+};
+
+struct WorldOptions {
+  std::string name = "default";
+  ScanHeadOptions scan_head;
+  CameraOptions camera;
+  LightOptions light;
+  PartOptions part;
+  StageOptions stage;
+  uint64_t seed = 1;
+
+  Status Validate() const;
+};
+
+}  // namespace insitu::sim

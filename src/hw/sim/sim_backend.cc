@@ -1,0 +1,102 @@
+#include "insitu/hw/sim_backend.h"
+
+#include <utility>
+
+namespace insitu::hw {
+namespace {
+
+class SimScanner : public Scanner {
+ public:
+  explicit SimScanner(std::shared_ptr<sim::SimWorld> world) : world_(std::move(world)) {}
+
+  ScannerInfo info() const override {
+    const auto& sh = world_->options().scan_head;
+    return {"simulated 3D scan head", sh.field_half_size_mm, sh.focus_range_mm, sh.clock_us};
+  }
+  Status StartPointerLine(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
+                          double speed_mm_per_s) override {
+    return world_->StartPointerLine(from, to, speed_mm_per_s);
+  }
+  Status StopPointer() override {
+    world_->StopPointer();
+    return Status::Ok();
+  }
+  Status Arm() override {
+    armed_ = true;
+    return Status::Ok();
+  }
+  Status Disarm() override {
+    armed_ = false;
+    return Status::Ok();
+  }
+  bool armed() const override { return armed_; }
+  Status ExecuteList(const GalvoList& list) override {
+    std::vector<sim::ListMove> moves;
+    bool marks = false;
+    for (const GalvoListEntry& e : list.entries) {
+      const bool mark = e.kind == GalvoListEntry::Kind::kMark;
+      marks |= mark;
+      moves.push_back({mark ? sim::ListMove::Kind::kMark : sim::ListMove::Kind::kJump,
+                       e.to_in_galvo});
+    }
+    if (marks && !armed_) {
+      return FailedPrecondition("the list marks but the scan head is not armed");
+    }
+    return world_->ExecuteMarkingList(moves, list.jump_speed_mm_per_s, list.mark_speed_mm_per_s);
+  }
+
+ private:
+  std::shared_ptr<sim::SimWorld> world_;
+  bool armed_ = false;
+};
+
+class SimCamera : public Camera {
+ public:
+  explicit SimCamera(std::shared_ptr<sim::SimWorld> world) : world_(std::move(world)) {}
+  CameraInfo info() const override {
+    const auto& c = world_->options().camera;
+    return {c.model, c.serial, c.width_px, c.height_px, c.bit_depth};
+  }
+  Status SetExposure(double exposure_us) override { return world_->SetExposure(exposure_us); }
+  Status SetGain(double gain_db) override { return world_->SetGain(gain_db); }
+  Status SetBinning(int binning) override { return world_->SetBinning(binning); }
+  Result<Frame> Grab() override { return world_->Grab(); }
+
+ private:
+  std::shared_ptr<sim::SimWorld> world_;
+};
+
+class SimStage : public Stage {
+ public:
+  explicit SimStage(std::shared_ptr<sim::SimWorld> world) : world_(std::move(world)) {}
+  double min_z_mm() const override { return world_->options().stage.min_z_mm; }
+  double max_z_mm() const override { return world_->options().stage.max_z_mm; }
+  Result<double> Position() const override { return world_->stage_z(); }
+  Status MoveTo(double z_mm) override { return world_->MoveStage(z_mm); }
+
+ private:
+  std::shared_ptr<sim::SimWorld> world_;
+};
+
+class SimClock : public MachineClock {
+ public:
+  explicit SimClock(std::shared_ptr<sim::SimWorld> world) : world_(std::move(world)) {}
+  double Now() const override { return world_->now_s(); }
+  void SleepFor(double seconds) override { world_->Advance(seconds); }
+
+ private:
+  std::shared_ptr<sim::SimWorld> world_;
+};
+
+}  // namespace
+
+Machine MakeSimMachine(std::shared_ptr<sim::SimWorld> world) {
+  Machine m;
+  m.scanner = std::make_unique<SimScanner>(world);
+  m.camera = std::make_unique<SimCamera>(world);
+  m.stage = std::make_unique<SimStage>(world);
+  m.clock = std::make_unique<SimClock>(world);
+  return m;
+}
+
+}  // namespace insitu::hw

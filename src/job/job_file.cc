@@ -1,0 +1,188 @@
+#include "insitu/job/job_file.h"
+
+#include <filesystem>
+
+namespace insitu::job {
+namespace fs = std::filesystem;
+
+std::string ResolvePath(const std::string& folder, const std::string& path) {
+  if (path.empty() || fs::path(path).is_absolute()) return path;
+  return (fs::path(folder) / path).lexically_normal().string();
+}
+
+Result<LoadedJob> LoadJobFile(const std::string& path, const std::vector<std::string>& sets) {
+  LoadedJob job;
+  job.path = path;
+  job.folder = fs::path(path).parent_path().string();
+  if (job.folder.empty()) job.folder = ".";
+  INSITU_ASSIGN_OR_RETURN(job.root, ConfigNode::LoadFile(path));
+  if (!job.root.IsMap()) return ParseError(path + ": a job file is a YAML map with a 'job:' key");
+  const ConfigNode world = job.root.Child("world");
+  if (world.IsDefined()) {
+    if (!world.IsScalar()) {
+      return InvalidArgument(world.Where() + ": expected the name of a world file");
+    }
+    INSITU_ASSIGN_OR_RETURN(std::string file, world.AsString());
+    auto loaded = ConfigNode::LoadFile(ResolvePath(job.folder, file));
+    if (!loaded.ok()) return loaded.status().Prefixed(world.Where());
+    job.world = *loaded;
+  }
+  for (const std::string& s : sets) {
+    const size_t eq = s.find('=');
+    if (eq == std::string::npos || eq == 0) {
+      return InvalidArgument("--set '" + s + "': expected dotted.key=value");
+    }
+    const std::string key = s.substr(0, eq), value = s.substr(eq + 1);
+    if (key.rfind("world.", 0) == 0) {
+      if (!job.world.IsDefined()) {
+        return InvalidArgument("--set " + key + ": the job names no world file");
+      }
+      INSITU_RETURN_IF_ERROR(job.world.Set(key.substr(6), value));
+    } else {
+      INSITU_RETURN_IF_ERROR(job.root.Set(key, value));
+    }
+  }
+  const ConfigNode kind = job.root.Child("job");
+  if (!kind.IsDefined()) return InvalidArgument(path + ": missing 'job:' (the job kind, e.g. scan)");
+  INSITU_ASSIGN_OR_RETURN(job.kind, kind.AsString());
+  return job;
+}
+
+namespace {
+
+void ReadOptics(ConfigReader& r, sim::ScanOpticsGeometry* g) {
+  r.Read("focal_length_mm", &g->focal_length_mm);
+  r.Read("mirror_separation_mm", &g->mirror_separation_mm);
+  r.Read("exit_pupil_height_mm", &g->exit_pupil_height_mm);
+  r.Read("pupil_aberration", &g->pupil_aberration);
+  r.Read("telecentric", &g->telecentric);
+  if (r.ok()) r.FailFromValidate(g->Validate());
+}
+
+void ReadBeam(ConfigReader& r, sim::BeamOptions* b) {
+  r.Read("wavelength_nm", &b->wavelength_nm);
+  r.Read("power_mw", &b->power_mw);
+  r.Read("waist_diameter_mm", &b->waist_diameter_mm);
+  r.Read("m2", &b->m2);
+  if (r.ok()) r.FailFromValidate(b->Validate());
+}
+
+}  // namespace
+
+void ReadWorld(ConfigReader& r, sim::WorldOptions* w) {
+  r.Read("name", &w->name);
+  int seed = static_cast<int>(w->seed);
+  r.Read("seed", &seed);
+  if (seed < 0) r.Fail("seed", "must be >= 0");
+  w->seed = static_cast<uint64_t>(seed);
+
+  ConfigReader& sh = r.Section("scan_head");
+  ReadOptics(sh.Section("optics"), &w->scan_head.optics);
+  ReadOptics(sh.Section("design"), &w->scan_head.design);
+  sh.Read("x_zero_offset_mrad", &w->scan_head.x_zero_offset_mrad);
+  sh.Read("y_zero_offset_mrad", &w->scan_head.y_zero_offset_mrad);
+  sh.Read("y_mirror_height_mm", &w->scan_head.y_mirror_height_mm);
+  sh.Read("field_half_size_mm", &w->scan_head.field_half_size_mm);
+  sh.Read("focus_range_mm", &w->scan_head.focus_range_mm);
+  sh.Read("tracking_lag_ms", &w->scan_head.tracking_lag_ms);
+  sh.Read("clock_us", &w->scan_head.clock_us);
+  ReadBeam(sh.Section("pointer"), &w->scan_head.pointer);
+  ReadBeam(sh.Section("marking"), &w->scan_head.marking);
+  if (sh.ok()) sh.FailFromValidate(w->scan_head.Validate());
+
+  ConfigReader& c = r.Section("camera");
+  sim::CameraOptions& co = w->camera;
+  c.Read("model", &co.model);
+  c.Read("serial", &co.serial);
+  c.Read("lens", &co.lens);
+  c.Read("width_px", &co.width_px);
+  c.Read("height_px", &co.height_px);
+  c.Read("pixel_pitch_um", &co.pixel_pitch_um);
+  c.Read("lens_focal_length_mm", &co.lens_focal_length_mm);
+  c.ReadArray("principal_point_offset_px", co.principal_point_offset_px.data(), 2);
+  c.Read("k1", &co.k1);
+  c.Read("k2", &co.k2);
+  c.Read("p1", &co.p1);
+  c.Read("p2", &co.p2);
+  c.Read("k3", &co.k3);
+  c.ReadArray("position_mm", co.position_mm.data(), 3);
+  c.ReadArray("look_at_mm", co.look_at_mm.data(), 3);
+  c.Read("roll_deg", &co.roll_deg);
+  c.Read("f_number", &co.f_number);
+  c.Read("quantum_efficiency", &co.quantum_efficiency);
+  c.Read("full_well_e", &co.full_well_e);
+  c.Read("read_noise_e", &co.read_noise_e);
+  c.Read("dark_current_e_per_s", &co.dark_current_e_per_s);
+  c.Read("gain_db", &co.gain_db);
+  c.Read("bit_depth", &co.bit_depth);
+  c.Read("exposure_ms", &co.exposure_ms);
+  c.Read("noise", &co.noise);
+  if (c.ok()) c.FailFromValidate(co.Validate());
+
+  ConfigReader& l = r.Section("light");
+  l.Read("ambient_lux", &w->light.ambient_lux);
+  l.Read("speckle_contrast", &w->light.speckle_contrast);
+  l.Read("speckle_grain_px", &w->light.speckle_grain_px);
+  l.Read("shadows", &w->light.shadows);
+  if (l.ok()) l.FailFromValidate(w->light.Validate());
+
+  ConfigReader& p = r.Section("part");
+  sim::PartOptions& po = w->part;
+  p.ReadEnum("kind", &po.kind, {"none", "plane", "step_gauge", "arc", "insert"});
+  p.ReadArray("position_mm", po.position_mm.data(), 2);
+  p.Read("rotation_deg", &po.rotation_deg);
+  p.Read("albedo", &po.albedo);
+  p.Read("plane_thickness_mm", &po.plane_thickness_mm);
+  p.ReadArray("plane_size_mm", po.plane_size_mm.data(), 2);
+  p.Read("gauge_length_mm", &po.gauge_length_mm);
+  p.Read("gauge_step_width_mm", &po.gauge_step_width_mm);
+  p.Read("gauge_heights_mm", &po.gauge_heights_mm);
+  p.Read("arc_width_mm", &po.arc_width_mm);
+  p.Read("arc_length_mm", &po.arc_length_mm);
+  p.Read("arc_height_mm", &po.arc_height_mm);
+  p.Read("arc_edge_height_mm", &po.arc_edge_height_mm);
+  p.Read("insert_edge_mm", &po.insert_edge_mm);
+  p.Read("insert_corner_radius_mm", &po.insert_corner_radius_mm);
+  p.Read("insert_thickness_mm", &po.insert_thickness_mm);
+  p.Read("insert_hole_diameter_mm", &po.insert_hole_diameter_mm);
+  p.Read("insert_rake_deg", &po.insert_rake_deg);
+  p.Read("insert_rake_land_mm", &po.insert_rake_land_mm);
+  if (p.ok()) p.FailFromValidate(po.Validate());
+
+  ConfigReader& st = r.Section("stage");
+  st.Read("z_mm", &w->stage.z_mm);
+  st.Read("min_z_mm", &w->stage.min_z_mm);
+  st.Read("max_z_mm", &w->stage.max_z_mm);
+  st.Read("speed_mm_per_s", &w->stage.speed_mm_per_s);
+  st.Read("plate_albedo", &w->stage.plate_albedo);
+  st.Read("plate_size_mm", &w->stage.plate_size_mm);
+  if (st.ok()) st.FailFromValidate(w->stage.Validate());
+}
+
+void ReadStripeOptions(ConfigReader& r, vision::StripeOptions* o) {
+  std::string direction = "auto";
+  r.ReadEnum("direction", &direction, {"auto", "columns", "rows"});
+  o->direction = direction == "columns" ? vision::StripeDirection::kColumns
+                 : direction == "rows"  ? vision::StripeDirection::kRows
+                                        : vision::StripeDirection::kAuto;
+  r.Read("threshold_ratio", &o->threshold_ratio);
+  r.Read("median_kernel", &o->median_kernel);
+  r.Read("min_peak", &o->min_peak);
+  r.Read("min_contrast", &o->min_contrast);
+  r.Read("max_width_px", &o->max_width_px);
+  r.Read("min_peak_separation_px", &o->min_peak_separation_px);
+  r.Read("saturation_level", &o->saturation_level);
+  r.Read("subtract_threshold", &o->subtract_threshold);
+  if (r.ok()) r.FailFromValidate(o->Validate());
+}
+
+void ReadMachine(ConfigReader& root, const std::string& folder, MachineSpec* spec) {
+  ConfigReader& m = root.Section("machine");
+  m.Read("backend", &spec->config.backend);
+  m.Require("calibration");
+  std::string calibration;
+  m.Read("calibration", &calibration);
+  spec->calibration_path = ResolvePath(folder, calibration);
+}
+
+}  // namespace insitu::job

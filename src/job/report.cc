@@ -1,0 +1,56 @@
+#include "insitu/job/report.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+namespace insitu::job {
+
+std::string NowIso8601() {
+  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+Status WriteReport(const Report& report, const std::string& dir) {
+  nlohmann::ordered_json j;
+  j["job"] = report.job;
+  j["ok"] = report.ok;
+  j["started"] = report.started;
+  j["elapsed_s"] = report.elapsed_s;
+  nlohmann::ordered_json metrics = nlohmann::ordered_json::object();
+  for (const auto& [name, value] : report.metrics) {
+    // JSON has no NaN: an unmeasured metric is null, never a made-up number.
+    if (std::isfinite(value)) {
+      metrics[name] = value;
+    } else {
+      metrics[name] = nullptr;
+    }
+  }
+  j["metrics"] = metrics;
+  j["artifacts"] = report.artifacts;
+  j["warnings"] = report.warnings;
+  if (!report.ok) j["error"] = report.error;
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  const std::string path = (std::filesystem::path(dir) / "report.json").string();
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp, std::ios::trunc);
+    if (!f) return NotFound("cannot write " + tmp);
+    f << j.dump(2) << "\n";
+    if (!f.good()) return DeviceError("write failed: " + tmp);
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) return DeviceError("cannot write " + path);
+  return Status::Ok();
+}
+
+}  // namespace insitu::job

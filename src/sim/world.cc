@@ -1,0 +1,366 @@
+#include "insitu/sim/world.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include <Eigen/Dense>
+
+#include "insitu/core/log.h"
+#include "sim/noise.h"
+#include "sim/parallel.h"
+
+namespace insitu::sim {
+namespace {
+
+constexpr double kPlanck = 6.62607015e-34;      // J s
+constexpr double kLightSpeed = 299792458.0;     // m / s
+// Photons per second per m^2 per lux of white (LED, ~4000 K) light: 1 lux ~ 3.3 mW/m^2 at a
+// mean photon energy of 3.6e-19 J.
+constexpr double kWhitePhotonsPerLuxSecondM2 = 9.0e15;
+// Height from which beam rays are traced down (above any part).
+constexpr double kTraceStartHeightMm = 200.0;
+
+CameraOptions BinnedCamera(const CameraOptions& o, int b) {
+  CameraOptions c = o;
+  c.width_px = o.width_px / b;
+  c.height_px = o.height_px / b;
+  c.pixel_pitch_um = o.pixel_pitch_um * b;
+  c.principal_point_offset_px = {o.principal_point_offset_px[0] / b,
+                                 o.principal_point_offset_px[1] / b};
+  return c;
+}
+
+}  // namespace
+
+SimWorld::SimWorld(const WorldOptions& options)
+    : options_(options),
+      scene_(std::make_unique<Scene>(options.part, options.stage)),
+      true_optics_(std::make_unique<ScanOptics>(options.scan_head.optics)),
+      design_optics_(std::make_unique<ScanOptics>(options.scan_head.design)),
+      camera_full_(std::make_unique<CameraModel>(options.camera)),
+      exposure_us_(options.camera.exposure_ms * 1e3),
+      gain_db_(options.camera.gain_db) {
+  camera_binned_ = std::make_unique<CameraModel>(options.camera);
+}
+
+SimWorld::~SimWorld() = default;
+
+double SimWorld::now_s() const { return now_s_; }
+void SimWorld::Advance(double seconds) { now_s_ += std::max(0.0, seconds); }
+
+const CameraModel& SimWorld::true_camera() const { return *camera_full_; }
+const Scene& SimWorld::scene() const { return *scene_; }
+const ScanOptics& SimWorld::true_optics() const { return *true_optics_; }
+
+bool SimWorld::CommandToAngles(const Eigen::Vector3d& p, MirrorAngles* angles) const {
+  // The head's correction table is built from its design geometry; the mirrors' zero errors
+  // are what the real head adds on top.
+  if (!design_optics_->Solve(p.x(), p.y(), p.z(), angles)) return false;
+  angles->x_rad += options_.scan_head.x_zero_offset_mrad * 1e-3;
+  angles->y_rad += options_.scan_head.y_zero_offset_mrad * 1e-3;
+  return true;
+}
+
+Status SimWorld::StartPointerLine(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
+                                  double speed_mm_per_s) {
+  const auto& sh = options_.scan_head;
+  for (const Eigen::Vector3d& p : {from, to}) {
+    if (std::abs(p.x()) > sh.field_half_size_mm || std::abs(p.y()) > sh.field_half_size_mm) {
+      return OutOfRange("pointer line point (" + std::to_string(p.x()) + ", " +
+                        std::to_string(p.y()) + ") mm is outside the scan field +-" +
+                        std::to_string(sh.field_half_size_mm) + " mm");
+    }
+    if (std::abs(p.z()) > sh.focus_range_mm) {
+      return OutOfRange("focus z " + std::to_string(p.z()) + " mm is outside the focus range +-" +
+                        std::to_string(sh.focus_range_mm) + " mm");
+    }
+  }
+  if (!(speed_mm_per_s > 0.0)) return InvalidArgument("pointer speed must be positive");
+  // Where the mirrors rest now: on the running program's current command, else as they were.
+  if (pointer_) CommandToAngles(PointerCommandAt(now_s_), &rest_angles_);
+  pointer_ = PointerProgram{from, to, speed_mm_per_s, now_s_};
+  return Status::Ok();
+}
+
+void SimWorld::StopPointer() {
+  if (pointer_) CommandToAngles(PointerCommandAt(now_s_), &rest_angles_);
+  pointer_.reset();
+}
+
+Eigen::Vector3d SimWorld::PointerCommandAt(double t) const {
+  const PointerProgram& p = *pointer_;
+  const double length = (p.to - p.from).norm();
+  if (length < 1e-9) return p.from;
+  // Back and forth at constant speed (triangle wave along the segment).
+  const double s = std::fmod((t - p.start_s) * p.speed_mm_per_s, 2.0 * length);
+  const double along = s <= length ? s : 2.0 * length - s;
+  return p.from + (p.to - p.from) * (along / length);
+}
+
+void SimWorld::PointerSamples(double t0, double t1, std::vector<BeamSample>* samples) const {
+  const auto& sh = options_.scan_head;
+  const double tick = sh.clock_us * 1e-6;
+  const double tau = sh.tracking_lag_ms * 1e-3;
+  // The lag forgets its past within ~10 tau: start the simulation there (or at program start).
+  double t = std::max(pointer_->start_s, t0 - 10.0 * tau - tick);
+  MirrorAngles actual = rest_angles_;
+  if (t > pointer_->start_s) CommandToAngles(PointerCommandAt(t), &actual);
+  const double alpha = tau > 0 ? 1.0 - std::exp(-tick / tau) : 1.0;
+  // Sub-samples per tick: fine enough that the spot moves < 0.02 mm between samples.
+  const int sub = std::max(1, static_cast<int>(std::ceil(pointer_->speed_mm_per_s * tick / 0.02)));
+  MirrorAngles prev = actual;
+  for (; t < t1; t += tick) {
+    MirrorAngles cmd;
+    CommandToAngles(PointerCommandAt(t + tick), &cmd);
+    actual.x_rad += alpha * (cmd.x_rad - actual.x_rad);
+    actual.y_rad += alpha * (cmd.y_rad - actual.y_rad);
+    const double z = PointerCommandAt(t + tick).z();
+    for (int k = 1; k <= sub; ++k) {
+      const double ts = t + tick * k / sub;
+      if (ts <= t0 || ts > t1) continue;
+      const double f = static_cast<double>(k) / sub;
+      BeamSample s;
+      s.angles.x_rad = prev.x_rad + f * (actual.x_rad - prev.x_rad);
+      s.angles.y_rad = prev.y_rad + f * (actual.y_rad - prev.y_rad);
+      s.focus_z_mm = z;
+      s.dt_s = tick / sub;
+      samples->push_back(s);
+    }
+    prev = actual;
+  }
+}
+
+Status SimWorld::ExecuteMarkingList(const std::vector<ListMove>& moves, double jump_speed,
+                                    double mark_speed) {
+  if (!(jump_speed > 0) || !(mark_speed > 0)) return InvalidArgument("list speeds must be > 0");
+  const double tick = options_.scan_head.clock_us * 1e-6;
+  Eigen::Vector3d pos = Eigen::Vector3d::Zero();
+  for (const ListMove& m : moves) {
+    MirrorAngles a;
+    if (!CommandToAngles(m.to_in_galvo, &a)) {
+      return OutOfRange("list point outside the scan field");
+    }
+    const double v = m.kind == ListMove::Kind::kMark ? mark_speed : jump_speed;
+    const double ticks = std::ceil((m.to_in_galvo - pos).norm() / (v * tick));
+    if (m.kind == ListMove::Kind::kMark) laser_on_ticks_ += static_cast<int64_t>(ticks);
+    now_s_ += ticks * tick;
+    pos = m.to_in_galvo;
+    rest_angles_ = a;
+  }
+  return Status::Ok();
+}
+
+Status SimWorld::MoveStage(double z_mm) {
+  const auto& st = options_.stage;
+  if (z_mm < st.min_z_mm || z_mm > st.max_z_mm) {
+    return OutOfRange("stage z " + std::to_string(z_mm) + " mm is outside the travel [" +
+                      std::to_string(st.min_z_mm) + ", " + std::to_string(st.max_z_mm) + "] mm");
+  }
+  now_s_ += std::abs(z_mm - scene_->stage_z()) / st.speed_mm_per_s;
+  scene_->set_stage_z(z_mm);
+  return Status::Ok();
+}
+
+double SimWorld::stage_z() const { return scene_->stage_z(); }
+
+Status SimWorld::SetExposure(double exposure_us) {
+  if (!(exposure_us >= 10.0 && exposure_us <= 10e6)) {
+    return OutOfRange("exposure " + std::to_string(exposure_us) +
+                      " us is outside the camera's range [10, 1e7] us");
+  }
+  exposure_us_ = exposure_us;
+  return Status::Ok();
+}
+
+Status SimWorld::SetGain(double gain_db) {
+  if (!(gain_db >= 0.0 && gain_db <= 24.0)) {
+    return OutOfRange("gain " + std::to_string(gain_db) + " dB is outside [0, 24] dB");
+  }
+  gain_db_ = gain_db;
+  return Status::Ok();
+}
+
+Status SimWorld::SetBinning(int binning) {
+  if (binning != 1 && binning != 2 && binning != 4) {
+    return InvalidArgument("binning " + std::to_string(binning) + " not supported (1, 2 or 4)");
+  }
+  binning_ = binning;
+  camera_binned_ = std::make_unique<CameraModel>(BinnedCamera(options_.camera, binning));
+  return Status::Ok();
+}
+
+int SimWorld::binning() const { return binning_; }
+double SimWorld::exposure_us() const { return exposure_us_; }
+
+Result<Frame> SimWorld::Grab() {
+  const CameraOptions cam_opts = BinnedCamera(options_.camera, binning_);
+  const CameraModel& cam = *camera_binned_;
+  const int w = cam_opts.width_px, h = cam_opts.height_px;
+  const double exposure_s = exposure_us_ * 1e-6;
+  const double t0 = now_s_, t1 = now_s_ + exposure_s;
+  const double pixel_area_m2 = std::pow(cam_opts.pixel_pitch_um * 1e-6, 2);
+  const double aperture = M_PI / (4.0 * cam_opts.f_number * cam_opts.f_number);
+  const auto& light = options_.light;
+
+  // Ambient light: cached radiance image (the scene only changes with the stage).
+  if (ambient_stage_z_ != scene_->stage_z() || ambient_binning_ != binning_) {
+    ambient_e_per_s_.assign(static_cast<size_t>(w) * h, 0.0f);
+    const double qe = cam_opts.quantum_efficiency;
+    ParallelRows(h, [&](int v_begin, int v_end) {
+    for (int v = v_begin; v < v_end; ++v) {
+      for (int u = 0; u < w; ++u) {
+        const Eigen::Vector2d px(u, v);
+        const Eigen::Vector3d dir = cam.PixelRayInWorld(px);
+        Hit hit;
+        if (!scene_->Intersect(cam.center_in_world(), dir, 5000.0, &hit)) continue;
+        // Diffuse room light from above: surfaces facing up get all of it, walls half.
+        const double shade = 0.5 + 0.5 * std::max(0.0, hit.normal.z());
+        const double sensor_lux = hit.albedo * light.ambient_lux * shade * aperture / M_PI *
+                                  cam.Cos4(px);
+        ambient_e_per_s_[static_cast<size_t>(v) * w + u] =
+            static_cast<float>(sensor_lux * pixel_area_m2 * kWhitePhotonsPerLuxSecondM2 * qe);
+      }
+    }
+    });
+    ambient_stage_z_ = scene_->stage_z();
+    ambient_binning_ = binning_;
+  }
+
+  std::vector<float> stripe(static_cast<size_t>(w) * h, 0.0f);
+  truth_ = FrameTruth{};
+  if (pointer_) {
+    std::vector<BeamSample> samples;
+    PointerSamples(t0, t1, &samples);
+    const BeamOptions& beam = options_.scan_head.pointer;
+    const double lambda_m = beam.wavelength_nm * 1e-9;
+    const double photon_j = kPlanck * kLightSpeed / lambda_m;
+    const double w0_mm = 0.5 * beam.waist_diameter_mm;
+    const double rayleigh_mm = M_PI * w0_mm * w0_mm / (beam.m2 * lambda_m * 1e3);
+    const double power_w = beam.power_mw * 1e-3;
+    // Blur of the camera: diffraction (Airy core ~ Gaussian sigma 0.42 lambda N) plus the
+    // pixel box (variance 1/12 px^2).
+    const double diffraction_px =
+        0.42 * lambda_m * cam_opts.f_number / (cam_opts.pixel_pitch_um * 1e-6);
+    const double blur_var = diffraction_px * diffraction_px + 1.0 / 12.0;
+    const Eigen::Vector3d cam_center = cam.center_in_world();
+    truth_.samples = static_cast<int>(samples.size());
+    for (const BeamSample& s : samples) {
+      const ChiefRay ray = true_optics_->Trace(s.angles);
+      const Eigen::Vector3d start = ray.AtHeight(scene_->stage_z() + kTraceStartHeightMm);
+      Hit hit;
+      if (!scene_->Intersect(start, -ray.up, 5000.0, &hit)) continue;
+      const Eigen::Vector3d& p = hit.point_in_world;
+      const Eigen::Vector3d to_cam = cam_center - p;
+      if (hit.normal.dot(to_cam) <= 0.0) continue;  // surface faces away from the camera
+      if (light.shadows && scene_->Blocked(p, cam_center)) {
+        ++truth_.occluded_samples;
+        continue;
+      }
+      Eigen::Vector2d p0;
+      if (!cam.Project(p, &p0)) continue;
+      if (p0.x() < -10 || p0.y() < -10 || p0.x() > w + 10 || p0.y() > h + 10) continue;
+      // Beam radius where it meets the surface (Gaussian beam, waist at the focus height).
+      const double defocus_mm = (p.z() - s.focus_z_mm) / ray.up.z();
+      const double w_mm = w0_mm * std::sqrt(1.0 + std::pow(defocus_mm / rayleigh_mm, 2));
+      // Footprint on the tangent plane: rho^2 = s^T M s, M = I - g g^T (g: beam direction in
+      // tangent coordinates), covariance (w^2/4) M^-1 = (w^2/4)(I + g g^T / (n.d)^2).
+      const Eigen::Vector3d d = -ray.up;
+      const Eigen::Vector3d& n = hit.normal;
+      Eigen::Vector3d t1v = n.cross(std::abs(n.z()) < 0.9 ? Eigen::Vector3d::UnitZ()
+                                                          : Eigen::Vector3d::UnitX());
+      t1v.normalize();
+      const Eigen::Vector3d t2v = n.cross(t1v);
+      const double cos_inc = std::abs(n.dot(d));
+      if (cos_inc < 1e-3) continue;
+      const Eigen::Vector2d g(t1v.dot(d), t2v.dot(d));
+      const Eigen::Matrix2d sigma_s =
+          (w_mm * w_mm / 4.0) * (Eigen::Matrix2d::Identity() + g * g.transpose() /
+                                                                   (cos_inc * cos_inc));
+      const Eigen::Matrix<double, 2, 3> j3 = cam.ProjectJacobian(p);
+      Eigen::Matrix2d j2;
+      j2.col(0) = j3 * t1v;
+      j2.col(1) = j3 * t2v;
+      const Eigen::Matrix2d sigma_geom = j2 * sigma_s * j2.transpose();
+      const Eigen::Matrix2d sigma = sigma_geom + blur_var * Eigen::Matrix2d::Identity();
+      const Eigen::Matrix2d info = sigma.inverse();
+      // Peak radiance of the spot (W / m^2 / sr), lowered by the blur that spreads it.
+      const double w_m = w_mm * 1e-3;
+      const double radiance = hit.albedo / M_PI * 2.0 * power_w / (M_PI * w_m * w_m) * cos_inc *
+                              std::sqrt(sigma_geom.determinant() / sigma.determinant());
+      const double electrons_peak = radiance * aperture * cam.Cos4(p0) * pixel_area_m2 *
+                                    s.dt_s * cam_opts.quantum_efficiency / photon_j;
+      truth_.beam_pixels.push_back(p0);
+      truth_.beam_points_in_world.push_back(p);
+      const double reach_u = 4.0 * std::sqrt(sigma(0, 0)), reach_v = 4.0 * std::sqrt(sigma(1, 1));
+      const int u_lo = std::max(0, static_cast<int>(std::floor(p0.x() - reach_u)));
+      const int u_hi = std::min(w - 1, static_cast<int>(std::ceil(p0.x() + reach_u)));
+      const int v_lo = std::max(0, static_cast<int>(std::floor(p0.y() - reach_v)));
+      const int v_hi = std::min(h - 1, static_cast<int>(std::ceil(p0.y() + reach_v)));
+      for (int v = v_lo; v <= v_hi; ++v) {
+        const double dv = v - p0.y();
+        float* row = stripe.data() + static_cast<size_t>(v) * w;
+        for (int u = u_lo; u <= u_hi; ++u) {
+          const double du = u - p0.x();
+          const double q = info(0, 0) * du * du + 2.0 * info(0, 1) * du * dv + info(1, 1) * dv * dv;
+          if (q < 32.0) row[u] += static_cast<float>(electrons_peak * std::exp(-0.5 * q));
+        }
+      }
+    }
+  }
+
+  // Speckle, then photon and read noise, then the ADC.
+  const uint64_t frame_seed = SplitMix64(options_.seed * 0x9E3779B97F4A7C15ull + frame_counter_);
+  const double grain_px =
+      light.speckle_grain_px > 0
+          ? light.speckle_grain_px
+          : 1.22 * options_.scan_head.pointer.wavelength_nm * 1e-9 * cam_opts.f_number /
+                (cam_opts.pixel_pitch_um * 1e-6);
+  float stripe_max = 0.0f;
+  for (float e : stripe) stripe_max = std::max(stripe_max, e);
+  truth_.peak_electrons = stripe_max;
+  Frame frame;
+  frame.width = w;
+  frame.height = h;
+  frame.bit_depth = cam_opts.bit_depth;
+  frame.bytes.resize(static_cast<size_t>(w) * h * frame.bytes_per_pixel());
+  frame.sequence = frame_counter_++;
+  frame.timestamp_s = t0;
+  frame.exposure_us = exposure_us_;
+  frame.gain_db = gain_db_;
+  frame.binning = binning_;
+  const double full_well = cam_opts.full_well_e * binning_ * binning_;
+  const double dn_per_e = frame.max_value() / full_well * std::pow(10.0, gain_db_ / 20.0);
+  const double read_var = cam_opts.read_noise_e * cam_opts.read_noise_e * binning_ * binning_;
+  const double dark_e = cam_opts.dark_current_e_per_s * binning_ * binning_ * exposure_s;
+  const float speckle_floor = stripe_max * 1e-3f;
+  const int max_dn = frame.max_value();
+  ParallelRows(h, [&](int v_begin, int v_end) {
+  for (int v = v_begin; v < v_end; ++v) {
+    NoiseSource noise(frame_seed ^ SplitMix64(static_cast<uint64_t>(v)));
+    const size_t row = static_cast<size_t>(v) * w;
+    for (int u = 0; u < w; ++u) {
+      double e = ambient_e_per_s_[row + u] * exposure_s + dark_e;
+      const float s = stripe[row + u];
+      if (s > speckle_floor && light.speckle_contrast > 0) {
+        e += s * SpeckleFactor(u, v, grain_px, light.speckle_contrast, frame_seed);
+      } else {
+        e += s;
+      }
+      if (cam_opts.noise) e = noise.ShotAndRead(e, read_var);
+      e = std::min(e, full_well);
+      const int dn = std::clamp(static_cast<int>(e * dn_per_e + 0.5), 0, max_dn);
+      if (frame.bit_depth > 8) {
+        frame.bytes[2 * (row + u)] = static_cast<uint8_t>(dn & 0xFF);
+        frame.bytes[2 * (row + u) + 1] = static_cast<uint8_t>(dn >> 8);
+      } else {
+        frame.bytes[row + u] = static_cast<uint8_t>(dn);
+      }
+    }
+  }
+  });
+  now_s_ = t1;
+  return frame;
+}
+
+}  // namespace insitu::sim

@@ -1,0 +1,140 @@
+#include "insitu/sim/world_options.h"
+
+#include <cmath>
+#include <sstream>
+
+namespace insitu::sim {
+namespace {
+
+// "name must be <rule>, got <value>": Validate() messages start with the field name so the
+// config layer can point at the line of that key.
+template <typename T>
+Status Bad(const std::string& name, const std::string& rule, T value) {
+  std::ostringstream os;
+  os << name << " must be " << rule << ", got " << value;
+  return InvalidArgument(os.str());
+}
+
+bool Positive(double v) { return std::isfinite(v) && v > 0.0; }
+
+}  // namespace
+
+Status ScanOpticsGeometry::Validate() const {
+  if (!Positive(focal_length_mm)) return Bad("focal_length_mm", "> 0", focal_length_mm);
+  if (!(mirror_separation_mm >= 0.0 && mirror_separation_mm < 200.0)) {
+    return Bad("mirror_separation_mm", "in [0, 200)", mirror_separation_mm);
+  }
+  if (!Positive(exit_pupil_height_mm)) {
+    return Bad("exit_pupil_height_mm", "> 0", exit_pupil_height_mm);
+  }
+  if (!(std::abs(pupil_aberration) < 1.0)) {
+    return Bad("pupil_aberration", "in (-1, 1)", pupil_aberration);
+  }
+  return Status::Ok();
+}
+
+Status BeamOptions::Validate() const {
+  if (!Positive(wavelength_nm)) return Bad("wavelength_nm", "> 0", wavelength_nm);
+  if (!(power_mw >= 0.0)) return Bad("power_mw", ">= 0", power_mw);
+  if (!Positive(waist_diameter_mm)) return Bad("waist_diameter_mm", "> 0", waist_diameter_mm);
+  if (!(m2 >= 1.0)) return Bad("m2", ">= 1", m2);
+  return Status::Ok();
+}
+
+Status ScanHeadOptions::Validate() const {
+  INSITU_RETURN_IF_ERROR(optics.Validate().Prefixed("optics"));
+  INSITU_RETURN_IF_ERROR(design.Validate().Prefixed("design"));
+  INSITU_RETURN_IF_ERROR(pointer.Validate().Prefixed("pointer"));
+  INSITU_RETURN_IF_ERROR(marking.Validate().Prefixed("marking"));
+  if (!Positive(field_half_size_mm)) return Bad("field_half_size_mm", "> 0", field_half_size_mm);
+  if (!(focus_range_mm >= 0.0)) return Bad("focus_range_mm", ">= 0", focus_range_mm);
+  if (!(tracking_lag_ms >= 0.0 && tracking_lag_ms < 100.0)) {
+    return Bad("tracking_lag_ms", "in [0, 100)", tracking_lag_ms);
+  }
+  if (!Positive(clock_us)) return Bad("clock_us", "> 0", clock_us);
+  if (!Positive(y_mirror_height_mm)) return Bad("y_mirror_height_mm", "> 0", y_mirror_height_mm);
+  return Status::Ok();
+}
+
+Status CameraOptions::Validate() const {
+  if (width_px < 16 || width_px > 16384) return Bad("width_px", "in [16, 16384]", width_px);
+  if (height_px < 16 || height_px > 16384) return Bad("height_px", "in [16, 16384]", height_px);
+  if (!Positive(pixel_pitch_um)) return Bad("pixel_pitch_um", "> 0", pixel_pitch_um);
+  if (!Positive(lens_focal_length_mm)) {
+    return Bad("lens_focal_length_mm", "> 0", lens_focal_length_mm);
+  }
+  for (double k : {k1, k2, p1, p2, k3}) {
+    if (!std::isfinite(k) || std::abs(k) > 10.0) return Bad("k1", "distortion in [-10, 10]", k);
+  }
+  if (!(f_number >= 0.7 && f_number <= 64)) return Bad("f_number", "in [0.7, 64]", f_number);
+  if (!(quantum_efficiency > 0 && quantum_efficiency <= 1)) {
+    return Bad("quantum_efficiency", "in (0, 1]", quantum_efficiency);
+  }
+  if (!Positive(full_well_e)) return Bad("full_well_e", "> 0", full_well_e);
+  if (!(read_noise_e >= 0)) return Bad("read_noise_e", ">= 0", read_noise_e);
+  if (!(dark_current_e_per_s >= 0)) return Bad("dark_current_e_per_s", ">= 0", dark_current_e_per_s);
+  if (!(gain_db >= 0 && gain_db <= 24)) return Bad("gain_db", "in [0, 24]", gain_db);
+  if (bit_depth != 8 && bit_depth != 12) return Bad("bit_depth", "8 or 12", bit_depth);
+  if (!(exposure_ms > 0 && exposure_ms <= 10000)) {
+    return Bad("exposure_ms", "in (0, 10000]", exposure_ms);
+  }
+  const double dx = look_at_mm[0] - position_mm[0], dy = look_at_mm[1] - position_mm[1],
+               dz = look_at_mm[2] - position_mm[2];
+  if (std::sqrt(dx * dx + dy * dy + dz * dz) < 1.0) {
+    return InvalidArgument("look_at_mm must differ from position_mm");
+  }
+  return Status::Ok();
+}
+
+Status LightOptions::Validate() const {
+  if (!(ambient_lux >= 0 && ambient_lux < 2e5)) return Bad("ambient_lux", "in [0, 2e5)", ambient_lux);
+  if (!(speckle_contrast >= 0 && speckle_contrast <= 1)) {
+    return Bad("speckle_contrast", "in [0, 1]", speckle_contrast);
+  }
+  if (!(speckle_grain_px >= 0 && speckle_grain_px < 100)) {
+    return Bad("speckle_grain_px", "in [0, 100)", speckle_grain_px);
+  }
+  return Status::Ok();
+}
+
+Status PartOptions::Validate() const {
+  if (kind != "none" && kind != "plane" && kind != "step_gauge" && kind != "arc" &&
+      kind != "insert") {
+    return InvalidArgument("kind must be one of none, plane, step_gauge, arc, insert, got " + kind);
+  }
+  if (!(albedo >= 0 && albedo <= 1)) return Bad("albedo", "in [0, 1]", albedo);
+  if (!Positive(plane_thickness_mm)) return Bad("plane_thickness_mm", "> 0", plane_thickness_mm);
+  if (!Positive(gauge_length_mm)) return Bad("gauge_length_mm", "> 0", gauge_length_mm);
+  if (!Positive(gauge_step_width_mm)) return Bad("gauge_step_width_mm", "> 0", gauge_step_width_mm);
+  if (gauge_heights_mm.empty()) return InvalidArgument("gauge_heights_mm must not be empty");
+  for (double hgt : gauge_heights_mm) {
+    if (!Positive(hgt)) return Bad("gauge_heights_mm", "all > 0", hgt);
+  }
+  if (!(arc_edge_height_mm > 0 && arc_height_mm > arc_edge_height_mm)) {
+    return Bad("arc_height_mm", "> arc_edge_height_mm > 0", arc_height_mm);
+  }
+  if (!Positive(insert_edge_mm)) return Bad("insert_edge_mm", "> 0", insert_edge_mm);
+  if (!(insert_hole_diameter_mm >= 0 && insert_hole_diameter_mm < insert_edge_mm / 2)) {
+    return Bad("insert_hole_diameter_mm", "in [0, edge/2)", insert_hole_diameter_mm);
+  }
+  return Status::Ok();
+}
+
+Status StageOptions::Validate() const {
+  if (!(min_z_mm < max_z_mm)) return Bad("min_z_mm", "< max_z_mm", min_z_mm);
+  if (!(z_mm >= min_z_mm && z_mm <= max_z_mm)) return Bad("z_mm", "within the travel", z_mm);
+  if (!Positive(speed_mm_per_s)) return Bad("speed_mm_per_s", "> 0", speed_mm_per_s);
+  if (!(plate_albedo >= 0 && plate_albedo <= 1)) return Bad("plate_albedo", "in [0, 1]", plate_albedo);
+  return Status::Ok();
+}
+
+Status WorldOptions::Validate() const {
+  INSITU_RETURN_IF_ERROR(scan_head.Validate().Prefixed("scan_head"));
+  INSITU_RETURN_IF_ERROR(camera.Validate().Prefixed("camera"));
+  INSITU_RETURN_IF_ERROR(light.Validate().Prefixed("light"));
+  INSITU_RETURN_IF_ERROR(part.Validate().Prefixed("part"));
+  INSITU_RETURN_IF_ERROR(stage.Validate().Prefixed("stage"));
+  return Status::Ok();
+}
+
+}  // namespace insitu::sim

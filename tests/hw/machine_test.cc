@@ -1,0 +1,53 @@
+#include "insitu/hw/machine.h"
+
+#include <gtest/gtest.h>
+
+#include "insitu/hw/sim_backend.h"
+
+namespace insitu::hw {
+namespace {
+
+TEST(Machine, UnknownBackendIsRefusedNamingTheKnownOnes) {
+  MachineConfig config;
+  config.backend = "aravis";
+  auto m = CreateMachine(config);
+  ASSERT_FALSE(m.ok());
+  EXPECT_EQ(m.status().code(), StatusCode::kNotFound);
+  EXPECT_NE(m.status().message().find("sim"), std::string::npos);
+}
+
+TEST(Machine, SimBackendValidatesTheWorld) {
+  MachineConfig config;
+  config.world.camera.f_number = 0.1;
+  auto m = CreateMachine(config);
+  ASSERT_FALSE(m.ok());
+  EXPECT_NE(m.status().message().find("f_number"), std::string::npos);
+}
+
+// The marking laser fires only while armed.
+TEST(Machine, MarkingListNeedsTheHeadArmed) {
+  MachineConfig config;
+  auto m = CreateMachine(config);
+  ASSERT_TRUE(m.ok());
+  GalvoList list;
+  list.entries.push_back({GalvoListEntry::Kind::kJump, {0, 0, 0}});
+  list.entries.push_back({GalvoListEntry::Kind::kMark, {10, 0, 0}});
+  EXPECT_EQ(m->scanner->ExecuteList(list).code(), StatusCode::kFailedPrecondition);
+  ASSERT_TRUE(m->scanner->Arm().ok());
+  EXPECT_TRUE(m->scanner->ExecuteList(list).ok());
+  ASSERT_TRUE(m->scanner->Disarm().ok());
+  EXPECT_FALSE(m->scanner->armed());
+}
+
+TEST(Machine, DevicesShareOneClock) {
+  auto world = std::make_shared<sim::SimWorld>(sim::WorldOptions{});
+  Machine m = MakeSimMachine(world);
+  const double t0 = m.clock->Now();
+  ASSERT_TRUE(m.stage->MoveTo(5.0).ok());  // 5 mm at 10 mm/s
+  EXPECT_NEAR(m.clock->Now() - t0, 0.5, 1e-9);
+  EXPECT_NEAR(*m.stage->Position(), 5.0, 1e-12);
+  EXPECT_EQ(m.stage->MoveTo(50.0).code(), StatusCode::kOutOfRange);
+}
+
+}  // namespace
+}  // namespace insitu::hw

@@ -1,0 +1,101 @@
+// The operator's command line: bad input gets one clear line naming the file, key or line and
+// a non-zero exit; nothing is written for a job that never started.
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CliRun {
+  int exit_code;
+  std::string err;
+};
+
+CliRun Insitu(const std::string& args) {
+  const std::string err_file = (fs::temp_directory_path() / "insitu_cli_err.txt").string();
+  const std::string cmd = std::string(INSITU_BIN) + " " + args + " 2>" + err_file + " >/dev/null";
+  const int status = std::system(cmd.c_str());
+  std::ifstream f(err_file);
+  std::string err((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  return {WEXITSTATUS(status), err};
+}
+
+std::string Job() { return std::string(INSITU_SOURCE_DIR) + "/config/jobs/scan_step_gauge.yaml"; }
+
+std::string WriteJob(const std::string& name, const std::string& text) {
+  const fs::path p = fs::temp_directory_path() / name;
+  std::ofstream(p) << text;
+  return p.string();
+}
+
+int Lines(const std::string& s) {
+  int n = 0;
+  for (char c : s) n += c == '\n';
+  return n;
+}
+
+TEST(Cli, VersionAndHelp) {
+  EXPECT_EQ(Insitu("--version").exit_code, 0);
+  EXPECT_EQ(Insitu("--help").exit_code, 0);
+  EXPECT_EQ(Insitu("run --help").exit_code, 0);
+}
+
+TEST(Cli, MissingJobFileNamesIt) {
+  const CliRun r = Insitu("run /nonexistent/job.yaml");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("/nonexistent/job.yaml"), std::string::npos) << r.err;
+  EXPECT_EQ(Lines(r.err), 1) << r.err;
+}
+
+TEST(Cli, MalformedYamlNamesTheLine) {
+  const std::string job = WriteJob("bad_yaml.yaml", "job: scan\nscan:\n  x_start_mm: [1, 2\n");
+  const CliRun r = Insitu("run " + job);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("bad_yaml.yaml:"), std::string::npos) << r.err;
+  EXPECT_EQ(Lines(r.err), 1) << r.err;
+}
+
+TEST(Cli, UnknownKeyIsNamed) {
+  const CliRun r = Insitu("run " + Job() + " --set scan.line_spacng_mm=0.5 --out /tmp/insitu_cli");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("scan.line_spacng_mm"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("unknown"), std::string::npos) << r.err;
+}
+
+TEST(Cli, OutOfRangeValuesAreNamed) {
+  const CliRun exposure = Insitu("run " + Job() + " --set camera.exposure_ms=-5 --out /tmp/insitu_cli");
+  EXPECT_EQ(exposure.exit_code, 2);
+  EXPECT_NE(exposure.err.find("exposure_ms"), std::string::npos) << exposure.err;
+  EXPECT_EQ(Lines(exposure.err), 1) << exposure.err;
+  const CliRun spacing = Insitu("run " + Job() + " --set scan.line_spacing_mm=0 --out /tmp/insitu_cli");
+  EXPECT_EQ(spacing.exit_code, 2);
+  EXPECT_NE(spacing.err.find("line_spacing_mm"), std::string::npos) << spacing.err;
+  const CliRun world = Insitu("run " + Job() + " --set world.camera.f_number=0 --out /tmp/insitu_cli");
+  EXPECT_EQ(world.exit_code, 2);
+  EXPECT_NE(world.err.find("f_number"), std::string::npos) << world.err;
+  const CliRun type = Insitu("run " + Job() + " --set scan.speed_mm_per_s=fast --out /tmp/insitu_cli");
+  EXPECT_EQ(type.exit_code, 2);
+  EXPECT_NE(type.err.find("scan.speed_mm_per_s"), std::string::npos) << type.err;
+}
+
+TEST(Cli, BadSetSyntaxAndUnknownJobKind) {
+  EXPECT_EQ(Insitu("run " + Job() + " --set nonsense").exit_code, 2);
+  const std::string job = WriteJob("kind.yaml", "job: teleport\n");
+  const CliRun r = Insitu("run " + job);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("teleport"), std::string::npos) << r.err;
+}
+
+TEST(Cli, CalibrationForAnotherCameraIsRefused) {
+  const CliRun r = Insitu("run " + Job() + " --set world.camera.width_px=2592 " +
+                       "--set world.camera.height_px=1944 --out /tmp/insitu_cli");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("2592"), std::string::npos) << r.err;
+}
+
+}  // namespace
