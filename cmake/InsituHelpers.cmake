@@ -5,8 +5,8 @@
 
 # -Wno-restrict, -Wno-maybe-uninitialized: GCC 12 false positives on std::string at -O3
 # (GCC bugs 105329, 107138).
-set(INSITU_WARNINGS -Wall -Wextra -Werror -Wno-error=deprecated-declarations -Wno-restrict
-    -Wno-maybe-uninitialized)
+set(INSITU_WARNINGS -Wall -Wextra -Werror -Wno-error=deprecated-declarations
+    $<$<CXX_COMPILER_ID:GNU>:-Wno-restrict> $<$<CXX_COMPILER_ID:GNU>:-Wno-maybe-uninitialized>)
 
 function(insitu_add_library NAME)
   cmake_parse_arguments(ARG "" "" "SOURCES;PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})

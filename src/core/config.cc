@@ -228,8 +228,8 @@ std::errc ParseNumber(const std::string& text, T* value) {
   return ec;
 }
 
-// Set by Section() and checked by Finish(): errors of a reader tree are ordered by when they
-// were recorded, whichever reader recorded them.
+// Numbers every recorded error, so that Finish() can return the first one in call order across a
+// reader and its sections.
 std::atomic<uint64_t> g_error_sequence{0};
 
 }  // namespace

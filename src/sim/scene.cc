@@ -254,6 +254,76 @@ bool Scene::IntersectPart(const Eigen::Vector3d& o_world, const Eigen::Vector3d&
   return false;
 }
 
+void Scene::SetBoard(const BoardOptions& options, int index) {
+  board_ = options;
+  board_present_ = options.present && !options.poses.empty();
+  if (!board_present_) return;
+  const auto& p = options.poses[static_cast<size_t>(index) % options.poses.size()];
+  const double d2r = M_PI / 180.0;
+  world_from_board_ = Eigen::Isometry3d::Identity();
+  world_from_board_.linear() = (Eigen::AngleAxisd(p[5] * d2r, Eigen::Vector3d::UnitZ()) *
+                                Eigen::AngleAxisd(p[4] * d2r, Eigen::Vector3d::UnitY()) *
+                                Eigen::AngleAxisd(p[3] * d2r, Eigen::Vector3d::UnitX()))
+                                   .matrix();
+  world_from_board_.translation() = Eigen::Vector3d(p[0], p[1], p[2]);
+}
+
+Eigen::Vector2d Scene::BoardLocal(const Eigen::Vector3d& p) const {
+  return (world_from_board_.inverse() * p).head<2>();
+}
+
+Eigen::Vector3d Scene::BoardCornerInWorld(int i, int j) const {
+  const double sq = board_.square_mm;
+  const Eigen::Vector3d local((i - 0.5 * (board_.inner_cols - 1)) * sq,
+                              (j - 0.5 * (board_.inner_rows - 1)) * sq, 0.0);
+  return world_from_board_ * local;
+}
+
+double Scene::BoardEdgeDistance(const Eigen::Vector3d& point_in_world) const {
+  const Eigen::Vector2d b = BoardLocal(point_in_world);
+  const double sq = board_.square_mm;
+  // Edges lie at odd multiples of sq/2 from the centre when the corner count is odd, at
+  // multiples of sq when even: measured from the first inner corner they are at k * sq.
+  const double ox = b.x() + 0.5 * (board_.inner_cols - 1) * sq;
+  const double oy = b.y() + 0.5 * (board_.inner_rows - 1) * sq;
+  const double dx = std::abs(ox - sq * std::round(ox / sq));
+  const double dy = std::abs(oy - sq * std::round(oy / sq));
+  return std::min(dx, dy);
+}
+
+bool Scene::IntersectBoard(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_max,
+                           Hit* hit) const {
+  if (!board_present_) return false;
+  const Eigen::Vector3d n = world_from_board_.linear().col(2);
+  const double denom = n.dot(d);
+  if (std::abs(denom) < 1e-12) return false;
+  const double t = n.dot(world_from_board_.translation() - o) / denom;
+  if (!(t > 0 && t <= t_max)) return false;
+  const Eigen::Vector3d p = o + d * t;
+  const Eigen::Vector2d b = BoardLocal(p);
+  const double sq = board_.square_mm;
+  const double half_w = 0.5 * (board_.inner_cols + 1) * sq + board_.margin_mm;
+  const double half_h = 0.5 * (board_.inner_rows + 1) * sq + board_.margin_mm;
+  if (std::abs(b.x()) > half_w || std::abs(b.y()) > half_h) return false;
+  double albedo = board_.albedo_light;
+  const double ox = b.x() + 0.5 * (board_.inner_cols + 1) * sq;
+  const double oy = b.y() + 0.5 * (board_.inner_rows + 1) * sq;
+  if (denom > 0) {
+    albedo = 0.5;  // the back of the board
+  } else if (ox >= 0 && oy >= 0 && ox < (board_.inner_cols + 1) * sq &&
+             oy < (board_.inner_rows + 1) * sq) {
+    const int i = static_cast<int>(ox / sq), j = static_cast<int>(oy / sq);
+    if ((i + j) % 2 == 0) albedo = board_.albedo_dark;
+  }
+  hit->t = t;
+  hit->point_in_world = p;
+  hit->normal = denom < 0 ? n : Eigen::Vector3d(-n);
+  hit->albedo = albedo;
+  hit->on_part = false;
+  hit->on_board = true;
+  return true;
+}
+
 bool Scene::Intersect(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
                       double t_max, Hit* hit) const {
   bool found = false;
@@ -275,20 +345,27 @@ bool Scene::Intersect(const Eigen::Vector3d& origin, const Eigen::Vector3d& dire
   Hit part_hit;
   if (IntersectPart(origin, direction, t_max, &part_hit)) {
     *hit = part_hit;
+    t_max = part_hit.t;
+    found = true;
+  }
+  Hit board_hit;
+  if (IntersectBoard(origin, direction, t_max, &board_hit)) {
+    *hit = board_hit;
     found = true;
   }
   return found;
 }
 
 bool Scene::Blocked(const Eigen::Vector3d& from, const Eigen::Vector3d& to) const {
-  if (!shape_) return false;
+  if (!shape_ && !board_present_) return false;
   const Eigen::Vector3d delta = to - from;
   const double len = delta.norm();
   const Eigen::Vector3d d = delta / len;
   // Start just off the surface so a point does not hide itself.
   constexpr double kEps = 2e-4;
   Hit h;
-  return IntersectPart(from + d * kEps, d, len - kEps, &h);
+  return IntersectPart(from + d * kEps, d, len - kEps, &h) ||
+         IntersectBoard(from + d * kEps, d, len - kEps, &h);
 }
 
 }  // namespace insitu::sim

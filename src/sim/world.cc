@@ -42,6 +42,20 @@ SimWorld::SimWorld(const WorldOptions& options)
       exposure_us_(options.camera.exposure_ms * 1e3),
       gain_db_(options.camera.gain_db) {
   camera_binned_ = std::make_unique<CameraModel>(options.camera);
+  scene_->SetBoard(options.board, 0);
+}
+
+Status SimWorld::PlaceBoard(int index) {
+  if (!options_.board.present) return FailedPrecondition("there is no calibration board");
+  if (index < 0) return InvalidArgument("board pose index must be >= 0");
+  scene_->SetBoard(options_.board, index);
+  ambient_valid_ = false;
+  now_s_ += 5.0;  // the operator's hands
+  return Status::Ok();
+}
+
+int SimWorld::board_pose_count() const {
+  return options_.board.present ? static_cast<int>(options_.board.poses.size()) : 0;
 }
 
 SimWorld::~SimWorld() = default;
@@ -204,7 +218,7 @@ Result<Frame> SimWorld::Grab() {
   const auto& light = options_.light;
 
   // Ambient light: cached radiance image (the scene only changes with the stage).
-  if (ambient_stage_z_ != scene_->stage_z() || ambient_binning_ != binning_) {
+  if (!ambient_valid_ || ambient_stage_z_ != scene_->stage_z() || ambient_binning_ != binning_) {
     ambient_e_per_s_.assign(static_cast<size_t>(w) * h, 0.0f);
     const double qe = cam_opts.quantum_efficiency;
     ParallelRows(h, [&](int v_begin, int v_end) {
@@ -214,9 +228,27 @@ Result<Frame> SimWorld::Grab() {
         const Eigen::Vector3d dir = cam.PixelRayInWorld(px);
         Hit hit;
         if (!scene_->Intersect(cam.center_in_world(), dir, 5000.0, &hit)) continue;
+        double albedo = hit.albedo;
+        // A printed pattern's edge inside the pixel: average 4 x 4 sub-pixel rays, so the
+        // image carries the true area fraction and not an aliased step.
+        const double footprint_mm = hit.t * cam_opts.pixel_pitch_um * 1e-3 /
+                                    cam_opts.lens_focal_length_mm;
+        if (hit.on_board && scene_->BoardEdgeDistance(hit.point_in_world) < 1.5 * footprint_mm) {
+          double sum = 0.0;
+          for (int sy = 0; sy < 4; ++sy) {
+            for (int sx = 0; sx < 4; ++sx) {
+              const Eigen::Vector2d sub(u - 0.375 + 0.25 * sx, v - 0.375 + 0.25 * sy);
+              Hit sh;
+              if (scene_->Intersect(cam.center_in_world(), cam.PixelRayInWorld(sub), 5000.0, &sh)) {
+                sum += sh.albedo;
+              }
+            }
+          }
+          albedo = sum / 16.0;
+        }
         // Diffuse room light from above: surfaces facing up get all of it, walls half.
         const double shade = 0.5 + 0.5 * std::max(0.0, hit.normal.z());
-        const double sensor_lux = hit.albedo * light.ambient_lux * shade * aperture / M_PI *
+        const double sensor_lux = albedo * light.ambient_lux * shade * aperture / M_PI *
                                   cam.Cos4(px);
         ambient_e_per_s_[static_cast<size_t>(v) * w + u] =
             static_cast<float>(sensor_lux * pixel_area_m2 * kWhitePhotonsPerLuxSecondM2 * qe);
@@ -225,6 +257,7 @@ Result<Frame> SimWorld::Grab() {
     });
     ambient_stage_z_ = scene_->stage_z();
     ambient_binning_ = binning_;
+    ambient_valid_ = true;
   }
 
   std::vector<float> stripe(static_cast<size_t>(w) * h, 0.0f);

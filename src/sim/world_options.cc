@@ -128,12 +128,29 @@ Status StageOptions::Validate() const {
   return Status::Ok();
 }
 
+Status BoardOptions::Validate() const {
+  if (inner_cols < 3 || inner_rows < 3) return Bad("inner_cols", ">= 3 (and inner_rows)", inner_cols);
+  if (!Positive(square_mm)) return Bad("square_mm", "> 0", square_mm);
+  if (!(margin_mm >= 0)) return Bad("margin_mm", ">= 0", margin_mm);
+  if (!(albedo_dark >= 0 && albedo_light <= 1 && albedo_dark < albedo_light)) {
+    return Bad("albedo_dark", "in [0, albedo_light)", albedo_dark);
+  }
+  if (poses.empty()) return InvalidArgument("poses must list at least one pose");
+  for (const auto& p : poses) {
+    for (double v : p) {
+      if (!std::isfinite(v)) return InvalidArgument("poses must be finite numbers");
+    }
+  }
+  return Status::Ok();
+}
+
 Status WorldOptions::Validate() const {
   INSITU_RETURN_IF_ERROR(scan_head.Validate().Prefixed("scan_head"));
   INSITU_RETURN_IF_ERROR(camera.Validate().Prefixed("camera"));
   INSITU_RETURN_IF_ERROR(light.Validate().Prefixed("light"));
   INSITU_RETURN_IF_ERROR(part.Validate().Prefixed("part"));
   INSITU_RETURN_IF_ERROR(stage.Validate().Prefixed("stage"));
+  INSITU_RETURN_IF_ERROR(board.Validate().Prefixed("board"));
   return Status::Ok();
 }
 

@@ -2,12 +2,12 @@
 //
 // Why a hand-written filter and not cv::medianBlur: the extractor has to keep up with the camera
 // (budget: 4x a memcpy of the frame, see bench/stripe_bench.cc). Measured with stripe_bench on
-// the 2 shared cores of the development machine (2592 x 1944 8-bit frame, medians of runs):
-// memcpy of the frame 0.10 ms; cv::medianBlur 3x3 alone 0.9 ms, i.e. 9x the memcpy and over
+// the 2 shared cores of the development machine (2592 x 1944 8-bit frame, several runs): memcpy
+// of the frame 0.10-0.14 ms; cv::medianBlur 3x3 alone 0.93 ms, i.e. 7-10x the memcpy and over
 // budget before a single centre is found; the straightforward OpenCV per-column version
-// (medianBlur, then minMaxLoc / threshold / moments on img.col(u)) ~40 ms; this file 0.20-0.23 ms,
-// i.e. 2.0-2.3x the memcpy and ~150x faster than that baseline. The stripe covers a few percent of
-// the frame, so the exact 3x3 median is only computed there.
+// (medianBlur, then minMaxLoc / threshold / moments on img.col(u)) 38-40 ms; this file
+// 0.20-0.23 ms, i.e. 1.5-2.2x the memcpy and 150-190x faster than that baseline. The stripe
+// covers a few percent of the frame, so the exact 3x3 median is only computed there.
 //
 // Design (kColumns; kRows transposes the frame first, which is simple and exactly equivalent):
 //
@@ -685,7 +685,8 @@ class ColumnExtractor {
       w_.candidate[c] = 0;
       if (select != nullptr && !select[c]) continue;
       // No exact value of the column exceeds `upper` (see the file comment), so this decides
-      // kNone for empty scan lines without filtering them.
+      // kNone for empty scan lines without filtering them (their peak is then the maximum of
+      // the vertical median v: the 3x3 median is never computed there).
       if (IsNone(w_.upper[u], u)) {
         SetResult(u, StripeStatus::kNone, w_.colmax[u], 0, kNaN);
         continue;

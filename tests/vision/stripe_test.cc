@@ -262,11 +262,12 @@ int ExpectMatchesReference(TestImage& img, const StripeOptions& o, double contra
       if (skipped != nullptr) ++*skipped;
       continue;
     }
+    // Status names print readably; the context helps to rebuild a failing random scene.
     EXPECT_EQ(StripeStatusName(r.status[u]), std::string(StripeStatusName(ref[u].status)))
-        << "column " << u << " peak " << r.peak[u] << " ref peak " << ref[u].peak << " w "
-        << int(r.width_px[u]) << " ref w " << ref[u].width << " k " << o.threshold_ratio << " sep "
-        << o.min_peak_separation_px << " maxw " << o.max_width_px << " med " << o.median_kernel
-        << " size " << img.width << "x" << img.height;
+        << "column " << u << " of " << img.width << "x" << img.height << ", peak " << r.peak[u]
+        << " (reference " << ref[u].peak << "), run " << int{r.width_px[u]} << " (" << ref[u].width
+        << "), k " << o.threshold_ratio << ", separation " << o.min_peak_separation_px
+        << ", max width " << o.max_width_px << ", kernel " << o.median_kernel;
     if (ref[u].status == StripeStatus::kNone) continue;
     EXPECT_EQ(r.peak[u], ref[u].peak) << "column " << u;
     if (ref[u].status != StripeStatus::kValid) continue;

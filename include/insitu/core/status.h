@@ -57,10 +57,13 @@ inline Status Internal(std::string m) { return {StatusCode::kInternal, std::move
 template <typename T>
 class [[nodiscard]] Result {
  public:
-  Result(T value) : value_(std::move(value)) {}  // NOLINT: implicit by design
-  Result(Status status) : status_(std::move(status)) {}  // NOLINT: implicit by design
+  Result(T value) : value_(std::move(value)), status_() {}  // NOLINT: implicit by design
+  Result(Status status) : status_(std::move(status)) {  // NOLINT: implicit by design
+    if (status_.ok()) status_ = Status(StatusCode::kInternal, "result built from an ok status");
+  }
 
   bool ok() const { return value_.has_value(); }
+  // Ok when a value is held, else why there is none.
   const Status& status() const { return status_; }
   T& value() & { return *value_; }
   const T& value() const& { return *value_; }
@@ -72,7 +75,7 @@ class [[nodiscard]] Result {
 
  private:
   std::optional<T> value_;
-  Status status_{StatusCode::kInternal, "result holds no value"};
+  Status status_;
 };
 
 }  // namespace insitu

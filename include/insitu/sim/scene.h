@@ -9,6 +9,7 @@
 #include <memory>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include "insitu/sim/world_options.h"
 
@@ -20,6 +21,7 @@ struct Hit {
   Eigen::Vector3d normal;         // unit, facing the side the ray came from
   double albedo = 0.0;
   bool on_part = false;
+  bool on_board = false;
 };
 
 // A part in its own frame: footprint centred at the origin, base at z = 0.
@@ -45,6 +47,14 @@ class Scene {
   // True if the part blocks the straight segment from `from` to `to` (the plate never does).
   bool Blocked(const Eigen::Vector3d& from, const Eigen::Vector3d& to) const;
 
+  // The chessboard target (if present) at pose `index` of options.poses.
+  void SetBoard(const BoardOptions& options, int index);
+  // Distance (mm, in the board plane) from a point on the board to the nearest edge between
+  // squares: where a pixel needs supersampling to image the pattern honestly.
+  double BoardEdgeDistance(const Eigen::Vector3d& point_in_world) const;
+  // World position of inner corner (i, j) of the board at its current pose: for tests.
+  Eigen::Vector3d BoardCornerInWorld(int i, int j) const;
+
   void set_stage_z(double z_mm) { stage_z_ = z_mm; }
   double stage_z() const { return stage_z_; }
   // Height of the part's top above the plate at a world xy (0 off the part): for tests.
@@ -60,8 +70,15 @@ class Scene {
   bool ClipToBox(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double* t0,
                  double* t1) const;
 
+  bool IntersectBoard(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_max,
+                      Hit* hit) const;
+  Eigen::Vector2d BoardLocal(const Eigen::Vector3d& p) const;
+
   PartOptions part_;
   StageOptions stage_;
+  BoardOptions board_;
+  bool board_present_ = false;
+  Eigen::Isometry3d world_from_board_ = Eigen::Isometry3d::Identity();
   std::unique_ptr<PartShape> shape_;
   double stage_z_;
   double cos_rot_, sin_rot_;

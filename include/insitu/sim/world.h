@@ -68,6 +68,11 @@ class SimWorld {
   Status MoveStage(double z_mm);
   double stage_z() const;
 
+  // The operator puts the calibration board at pose `index` of board.poses (modulo their
+  // number). Errors: failed_precondition if the world has no board.
+  Status PlaceBoard(int index);
+  int board_pose_count() const;
+
   // Camera.
   Status SetExposure(double exposure_us);
   Status SetGain(double gain_db);
@@ -117,7 +122,8 @@ class SimWorld {
   FrameTruth truth_;
   // Ambient image (electrons per second per pixel), cached per stage height and binning.
   std::vector<float> ambient_e_per_s_;
-  double ambient_stage_z_ = 1e300;
+  bool ambient_valid_ = false;
+  double ambient_stage_z_ = 0.0;
   int ambient_binning_ = 0;
   std::unique_ptr<CameraModel> camera_binned_;
 };

@@ -129,6 +129,23 @@ struct StageOptions {
   Status Validate() const;
 };
 
+// A printed chessboard calibration target the operator holds or lays in the field.
+// Pose of view k: poses[k] = [x, y, z, rx, ry, rz] (mm, deg): the centre of the board's top
+// face in the world and its rotation (about x, then y, then z). The first pose is where it
+// lies at start. Corners of the pattern are the inner corners of the squares.
+struct BoardOptions {
+  bool present = false;
+  int inner_cols = 11;           // inner corners along the board's x
+  int inner_rows = 8;            // inner corners along the board's y
+  double square_mm = 10.0;
+  double margin_mm = 8.0;        // light border around the squares
+  double albedo_dark = 0.04;     // printed black
+  double albedo_light = 0.80;    // white
+  std::vector<std::array<double, 6>> poses{{0.0, 0.0, 0.0, 0.0, 0.0, 0.0}};
+
+  Status Validate() const;
+};
+
 struct WorldOptions {
   std::string name = "default";
   ScanHeadOptions scan_head;
@@ -136,6 +153,7 @@ struct WorldOptions {
   LightOptions light;
   PartOptions part;
   StageOptions stage;
+  BoardOptions board;
   uint64_t seed = 1;
 
   Status Validate() const;

@@ -1,0 +1,78 @@
+// Camera calibration on the machine: intrinsics from chessboard views (Zhang's method,
+// cv::calibrateCamera) and the camera's pose in the galvo frame from pointer spots shot at
+// known galvo positions (seed 000 sec. 3.3.1 step 1, Fig. 6a; cv::solvePnP).
+// Frames as in calibration.h. Results come back as summaries with ok and a message: a
+// calibration that fails leaves nothing half-made for the caller to save.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "insitu/calib/calibration.h"
+
+namespace insitu::calib {
+
+struct BoardGeometry {
+  int inner_cols = 11;
+  int inner_rows = 8;
+  double square_mm = 10.0;
+};
+
+struct IntrinsicsOptions {
+  int min_views = 8;              // boards found in at least this many frames
+  double min_coverage = 0.35;     // fraction of the image (16 x 16 cells) holding corners
+  double max_rms_px = 0.5;        // reprojection RMS above this fails the calibration
+  bool fix_k3 = true;             // a 15 mm lens needs no 6th-order term; fitting it overfits
+
+  Status Validate() const;
+};
+
+struct IntrinsicsSummary {
+  bool ok = false;
+  std::string message;
+  int views = 0;
+  double rms_px = 0.0;
+  double coverage = 0.0;
+  std::vector<double> view_rms_px;
+  // One-sigma uncertainties OpenCV derives from the residuals (fx, fy, cx, cy, k1, k2, p1, p2).
+  std::vector<double> stddev;
+  CameraIntrinsics intrinsics;  // width/height/model/serial filled by the caller
+};
+
+// `corners[k]`: the inner corners of view k in board order (vision::FindChessboard).
+IntrinsicsSummary CalibrateIntrinsics(const std::vector<std::vector<Eigen::Vector2d>>& corners,
+                                      const BoardGeometry& board, int width_px, int height_px,
+                                      const IntrinsicsOptions& options);
+
+// One pointer spot: where the head was told to put it and where the camera saw it.
+struct GalvoSpot {
+  Eigen::Vector3d commanded_in_galvo;  // mm
+  Eigen::Vector2d pixel;
+};
+
+struct AlignmentOptions {
+  int min_spots = 6;
+  double min_spread_mm = 10.0;   // the spots must span at least this in two directions
+  double max_rms_mm = 0.2;
+
+  Status Validate() const;
+};
+
+struct AlignmentSummary {
+  bool ok = false;
+  std::string message;
+  int spots = 0;
+  Eigen::Isometry3d camera_from_galvo = Eigen::Isometry3d::Identity();
+  double rms_px = 0.0;
+  double rms_mm = 0.0;  // spot position error in the galvo frame, on the spot's own height
+  double max_mm = 0.0;
+};
+
+AlignmentSummary AlignCameraToGalvo(const std::vector<GalvoSpot>& spots,
+                                    const CameraIntrinsics& camera,
+                                    const AlignmentOptions& options);
+
+}  // namespace insitu::calib
