@@ -157,6 +157,31 @@ void ReadWorld(ConfigReader& r, sim::WorldOptions* w) {
   st.Read("plate_albedo", &w->stage.plate_albedo);
   st.Read("plate_size_mm", &w->stage.plate_size_mm);
   if (st.ok()) st.FailFromValidate(w->stage.Validate());
+
+  ConfigReader& b = r.Section("board");
+  sim::BoardOptions& bo = w->board;
+  b.Read("present", &bo.present);
+  b.Read("inner_cols", &bo.inner_cols);
+  b.Read("inner_rows", &bo.inner_rows);
+  b.Read("square_mm", &bo.square_mm);
+  b.Read("margin_mm", &bo.margin_mm);
+  b.Read("albedo_dark", &bo.albedo_dark);
+  b.Read("albedo_light", &bo.albedo_light);
+  if (b.Has("poses")) {
+    b.Skip("poses");
+    const ConfigNode poses = b.node().Child("poses");
+    bo.poses.clear();
+    for (size_t i = 0; poses.IsSequence() && i < poses.size(); ++i) {
+      auto pose = poses.At(i).AsDoubleList();
+      if (!pose.ok() || pose->size() != 6) {
+        b.Fail("poses", "entry " + std::to_string(i) + " must be [x, y, z, rx, ry, rz]");
+        break;
+      }
+      bo.poses.push_back({(*pose)[0], (*pose)[1], (*pose)[2], (*pose)[3], (*pose)[4], (*pose)[5]});
+    }
+    if (!poses.IsSequence()) b.Fail("poses", "must be a list of [x, y, z, rx, ry, rz]");
+  }
+  if (b.ok()) b.FailFromValidate(bo.Validate());
 }
 
 void ReadStripeOptions(ConfigReader& r, vision::StripeOptions* o) {

@@ -10,6 +10,7 @@
 #include "insitu/job/plot.h"
 #include "insitu/job/scan.h"
 #include "insitu/job/step_gauge.h"
+#include "job/calibrate.h"
 
 namespace insitu::job {
 namespace {
@@ -203,10 +204,11 @@ Result<Report> RunScanJob(const LoadedJob& job, const RunOptions& options) {
 
 }  // namespace
 
-std::vector<std::string> JobKinds() { return {"scan"}; }
+std::vector<std::string> JobKinds() { return {"scan", "calibrate"}; }
 
 Result<Report> RunJob(const LoadedJob& job, const RunOptions& options) {
   if (job.kind == "scan") return RunScanJob(job, options);
+  if (job.kind == "calibrate") return RunCalibrateJob(job, options);
   std::string kinds;
   for (const std::string& k : JobKinds()) kinds += (kinds.empty() ? "" : ", ") + k;
   return InvalidArgument(job.path + ": job: unknown kind '" + job.kind + "' (known: " + kinds + ")");

@@ -222,9 +222,14 @@ bool Scene::IntersectPart(const Eigen::Vector3d& o_world, const Eigen::Vector3d&
       Eigen::Vector3d n_local;
       constexpr double e = 1e-3;
       if (std::abs(q.z() - top) < 1e-4) {
-        const double gx = (shape_->Top(q.x() + e, q.y()) - shape_->Top(q.x() - e, q.y())) / (2 * e);
-        const double gy = (shape_->Top(q.x(), q.y() + e) - shape_->Top(q.x(), q.y() - e)) / (2 * e);
-        n_local = Eigen::Vector3d(-gx, -gy, 1.0).normalized();
+        // One-sided slopes, taking the side that does not cross a step: on the very edge of a
+        // step the top is flat, not a wall.
+        auto slope = [&](double dx, double dy) {
+          const double fwd = (shape_->Top(q.x() + dx, q.y() + dy) - top) / e;
+          const double bwd = (top - shape_->Top(q.x() - dx, q.y() - dy)) / e;
+          return std::abs(fwd) < std::abs(bwd) ? fwd : bwd;
+        };
+        n_local = Eigen::Vector3d(-slope(e, 0), -slope(0, e), 1.0).normalized();
       } else if (std::abs(shape_->SignedDistance2D(q.x(), q.y())) < 1e-3) {
         const double gx = shape_->SignedDistance2D(q.x() + e, q.y()) -
                           shape_->SignedDistance2D(q.x() - e, q.y());
@@ -256,7 +261,7 @@ bool Scene::IntersectPart(const Eigen::Vector3d& o_world, const Eigen::Vector3d&
 
 void Scene::SetBoard(const BoardOptions& options, int index) {
   board_ = options;
-  board_present_ = options.present && !options.poses.empty();
+  board_present_ = options.present && !options.poses.empty() && index >= 0;
   if (!board_present_) return;
   const auto& p = options.poses[static_cast<size_t>(index) % options.poses.size()];
   const double d2r = M_PI / 180.0;

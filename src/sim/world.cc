@@ -42,7 +42,22 @@ SimWorld::SimWorld(const WorldOptions& options)
       exposure_us_(options.camera.exposure_ms * 1e3),
       gain_db_(options.camera.gain_db) {
   camera_binned_ = std::make_unique<CameraModel>(options.camera);
-  scene_->SetBoard(options.board, 0);
+  scene_->SetBoard(options.board, -1);
+}
+
+void SimWorld::RemovePart() {
+  options_.part.kind = "none";
+  const double z = scene_->stage_z();
+  scene_ = std::make_unique<Scene>(options_.part, options_.stage);
+  scene_->set_stage_z(z);
+  scene_->SetBoard(options_.board, -1);
+  ambient_valid_ = false;
+  now_s_ += 5.0;  // the operator's hands
+}
+
+void SimWorld::RemoveBoard() {
+  scene_->SetBoard(options_.board, -1);
+  ambient_valid_ = false;
 }
 
 Status SimWorld::PlaceBoard(int index) {

@@ -109,3 +109,59 @@ TEST(ScanEndToEnd, JobFileWritesReportCloudAndFigure) {
 
 }  // namespace
 }  // namespace insitu
+
+namespace insitu {
+namespace {
+
+// The operator's path: calibrate on the machine, then scan with the file it wrote. The
+// measured calibration must bring method 1 from the as-designed ~1.4 mm down to the light-
+// plane model error (< 0.1 mm per step mean, see the perfect-calibration test above).
+TEST(CalibrateThenScan, MeasuredCalibrationRemovesTheMountingError) {
+  const fs::path out = fs::temp_directory_path() / "insitu_e2e_calibrate";
+  fs::remove_all(out);
+  const std::string cal = (out / "machine.yaml").string();
+  auto job = job::LoadJobFile(std::string(INSITU_SOURCE_DIR) + "/config/jobs/calibrate.yaml",
+                              {"output.calibration=" + cal});
+  ASSERT_TRUE(job.ok()) << job.status().ToString();
+  job::RunOptions options;
+  options.out_dir = (out / "calibrate").string();
+  auto report = job::RunJob(*job, options);
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_LT(report->metrics["intrinsics_rms_px"], 0.2);
+  EXPECT_LT(report->metrics["alignment_rms_mm"], 0.03);
+  ASSERT_TRUE(fs::exists(cal));
+
+  auto scan = job::LoadJobFile(
+      std::string(INSITU_SOURCE_DIR) + "/config/jobs/scan_step_gauge.yaml",
+      {"machine.calibration=" + cal, "camera.binning=2", "scan.x_start_mm=-9.5",
+       "scan.x_end_mm=9.5", "scan.line_spacing_mm=1.0"});
+  ASSERT_TRUE(scan.ok()) << scan.status().ToString();
+  options.out_dir = (out / "scan").string();
+  auto scanned = job::RunJob(*scan, options);
+  ASSERT_TRUE(scanned.ok()) << scanned.status().ToString();
+  for (const char* step : {"3mm", "5mm", "10mm", "15mm"}) {
+    EXPECT_LT(std::abs(scanned->metrics[std::string("height_error_mean_mm_step_") + step]), 0.1)
+        << step;
+  }
+}
+
+// A failed calibration (too few views) leaves no new file and says why.
+TEST(CalibrateThenScan, FailedCalibrationWritesNoFile) {
+  const fs::path out = fs::temp_directory_path() / "insitu_e2e_calibrate_fail";
+  fs::remove_all(out);
+  const std::string cal = (out / "machine.yaml").string();
+  auto job = job::LoadJobFile(std::string(INSITU_SOURCE_DIR) + "/config/jobs/calibrate.yaml",
+                              {"output.calibration=" + cal, "intrinsics.views=3"});
+  ASSERT_TRUE(job.ok()) << job.status().ToString();
+  job::RunOptions options;
+  options.out_dir = (out / "calibrate").string();
+  auto report = job::RunJob(*job, options);
+  ASSERT_FALSE(report.ok());
+  EXPECT_NE(report.status().message().find("too few views"), std::string::npos)
+      << report.status().message();
+  EXPECT_FALSE(fs::exists(cal));
+  EXPECT_TRUE(fs::exists(out / "calibrate" / "report.json"));
+}
+
+}  // namespace
+}  // namespace insitu

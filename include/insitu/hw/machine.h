@@ -9,6 +9,7 @@
 
 #include "insitu/core/status.h"
 #include "insitu/hw/camera.h"
+#include "insitu/hw/operator.h"
 #include "insitu/hw/scanner.h"
 #include "insitu/hw/stage.h"
 #include "insitu/sim/world_options.h"
@@ -28,6 +29,7 @@ struct Machine {
   std::unique_ptr<Camera> camera;
   std::unique_ptr<Stage> stage;
   std::unique_ptr<MachineClock> clock;
+  std::unique_ptr<Operator> person;
 };
 
 // What a backend needs to come up. Each backend reads only its own part.

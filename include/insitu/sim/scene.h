@@ -47,7 +47,7 @@ class Scene {
   // True if the part blocks the straight segment from `from` to `to` (the plate never does).
   bool Blocked(const Eigen::Vector3d& from, const Eigen::Vector3d& to) const;
 
-  // The chessboard target (if present) at pose `index` of options.poses.
+  // The chessboard target at pose `index` of options.poses; index < 0 takes it away.
   void SetBoard(const BoardOptions& options, int index);
   // Distance (mm, in the board plane) from a point on the board to the nearest edge between
   // squares: where a pixel needs supersampling to image the pattern honestly.

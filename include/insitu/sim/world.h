@@ -71,6 +71,9 @@ class SimWorld {
   // The operator puts the calibration board at pose `index` of board.poses (modulo their
   // number). Errors: failed_precondition if the world has no board.
   Status PlaceBoard(int index);
+  void RemoveBoard();
+  // The operator takes the part off the stage.
+  void RemovePart();
   int board_pose_count() const;
 
   // Camera.

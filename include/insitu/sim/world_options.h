@@ -129,12 +129,13 @@ struct StageOptions {
   Status Validate() const;
 };
 
-// A printed chessboard calibration target the operator holds or lays in the field.
+// A printed chessboard calibration target the operator holds in the field when asked.
 // Pose of view k: poses[k] = [x, y, z, rx, ry, rz] (mm, deg): the centre of the board's top
-// face in the world and its rotation (about x, then y, then z). The first pose is where it
-// lies at start. Corners of the pattern are the inner corners of the squares.
+// face in the world and its rotation (about x, then y, then z). Until the operator places it
+// (SimWorld::PlaceBoard) the board is out of the way. Corners of the pattern are the inner
+// corners of the squares.
 struct BoardOptions {
-  bool present = false;
+  bool present = false;          // the cell has a board the operator can place
   int inner_cols = 11;           // inner corners along the board's x
   int inner_rows = 8;            // inner corners along the board's y
   double square_mm = 10.0;

@@ -88,6 +88,23 @@ class SimClock : public MachineClock {
   std::shared_ptr<sim::SimWorld> world_;
 };
 
+class SimOperator : public Operator {
+ public:
+  explicit SimOperator(std::shared_ptr<sim::SimWorld> world) : world_(std::move(world)) {}
+  Status PlaceBoard(int view, int) override { return world_->PlaceBoard(view); }
+  Status RemoveBoard() override {
+    world_->RemoveBoard();
+    return Status::Ok();
+  }
+  Status ClearTable() override {
+    world_->RemovePart();
+    return Status::Ok();
+  }
+
+ private:
+  std::shared_ptr<sim::SimWorld> world_;
+};
+
 }  // namespace
 
 Machine MakeSimMachine(std::shared_ptr<sim::SimWorld> world) {
@@ -96,6 +113,7 @@ Machine MakeSimMachine(std::shared_ptr<sim::SimWorld> world) {
   m.camera = std::make_unique<SimCamera>(world);
   m.stage = std::make_unique<SimStage>(world);
   m.clock = std::make_unique<SimClock>(world);
+  m.person = std::make_unique<SimOperator>(world);
   return m;
 }
 

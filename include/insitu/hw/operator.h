@@ -1,0 +1,25 @@
+// The person at the machine, as jobs see them: asked to put the calibration board in a new
+// pose, or to take it away. On a real cell this prompts and waits; on the simulator the
+// world's scripted poses stand in for the operator's hands.
+#pragma once
+
+#include "insitu/core/status.h"
+
+namespace insitu::hw {
+
+class Operator {
+ public:
+  Operator() = default;
+  virtual ~Operator() = default;
+  Operator(const Operator&) = delete;
+  Operator& operator=(const Operator&) = delete;
+
+  // "Hold the board in a new pose (view k of n), tilted, covering a new part of the image."
+  // Errors: failed_precondition if the cell has no board, cancelled if the operator aborts.
+  virtual Status PlaceBoard(int view, int views) = 0;
+  virtual Status RemoveBoard() = 0;
+  // "Take every part off the stage": calibrations that need the bare plate ask for this.
+  virtual Status ClearTable() = 0;
+};
+
+}  // namespace insitu::hw

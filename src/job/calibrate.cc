@@ -1,0 +1,250 @@
+// The calibrate job: camera intrinsics from chessboard views, then the camera's pose in the
+// galvo frame from pointer spots, written as a new calibration set only if both succeed.
+#include "job/calibrate.h"
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "insitu/calib/calibration.h"
+#include "insitu/calib/camera_calibration.h"
+#include "insitu/core/log.h"
+#include "insitu/vision/targets.h"
+
+namespace insitu::job {
+namespace {
+
+struct CalibrateSpec {
+  MachineSpec machine;
+  calib::BoardGeometry board;
+  int views = 15;
+  double board_exposure_ms = 300.0;
+  double board_stage_z_mm = -20.0;
+  calib::IntrinsicsOptions intrinsics;
+  double spot_exposure_ms = 0.5;
+  std::vector<double> spot_stage_z_mm{0.0, 10.0};
+  double spot_half_size_mm = 40.0;
+  double spot_step_mm = 20.0;
+  calib::AlignmentOptions alignment;
+  std::string output_path;
+};
+
+Status ReadSpec(const LoadedJob& job, CalibrateSpec* s, hw::MachineConfig* machine) {
+  ConfigReader r(job.root);
+  std::string text;
+  r.Read("job", &text);
+  r.Read("description", &text);
+  r.Skip("world");
+  ReadMachine(r, job.folder, &s->machine);
+  ConfigReader& b = r.Section("board");
+  b.Read("inner_cols", &s->board.inner_cols);
+  b.Read("inner_rows", &s->board.inner_rows);
+  b.Read("square_mm", &s->board.square_mm);
+  if (b.ok() && (s->board.inner_cols < 3 || s->board.inner_rows < 3)) {
+    b.Fail("inner_cols", "must be >= 3 (and inner_rows)");
+  }
+  if (b.ok() && !(s->board.square_mm > 0)) b.Fail("square_mm", "must be > 0");
+  ConfigReader& in = r.Section("intrinsics");
+  in.Read("views", &s->views);
+  in.Read("exposure_ms", &s->board_exposure_ms);
+  in.Read("stage_z_mm", &s->board_stage_z_mm);
+  in.Read("min_views", &s->intrinsics.min_views);
+  in.Read("min_coverage", &s->intrinsics.min_coverage);
+  in.Read("max_rms_px", &s->intrinsics.max_rms_px);
+  if (in.ok() && s->views < 1) in.Fail("views", "must be >= 1");
+  if (in.ok() && !(s->board_exposure_ms > 0)) in.Fail("exposure_ms", "must be > 0");
+  if (in.ok()) in.FailFromValidate(s->intrinsics.Validate());
+  ConfigReader& al = r.Section("alignment");
+  al.Read("exposure_ms", &s->spot_exposure_ms);
+  al.Read("stage_z_mm", &s->spot_stage_z_mm);
+  al.Read("half_size_mm", &s->spot_half_size_mm);
+  al.Read("step_mm", &s->spot_step_mm);
+  al.Read("min_spots", &s->alignment.min_spots);
+  al.Read("max_rms_mm", &s->alignment.max_rms_mm);
+  if (al.ok() && !(s->spot_exposure_ms > 0)) al.Fail("exposure_ms", "must be > 0");
+  if (al.ok() && !(s->spot_step_mm > 0)) al.Fail("step_mm", "must be > 0");
+  if (al.ok() && !(s->spot_half_size_mm > 0)) al.Fail("half_size_mm", "must be > 0");
+  if (al.ok() && s->spot_stage_z_mm.empty()) al.Fail("stage_z_mm", "must list at least one height");
+  if (al.ok()) al.FailFromValidate(s->alignment.Validate());
+  ConfigReader& out = r.Section("output");
+  out.Require("calibration");
+  std::string path;
+  out.Read("calibration", &path);
+  s->output_path = ResolvePath(job.folder, path);
+  INSITU_RETURN_IF_ERROR(r.Finish());
+  *machine = s->machine.config;
+  if (machine->backend == "sim") {
+    if (!job.world.IsDefined()) {
+      return InvalidArgument(job.path + ": machine.backend is sim but the job names no world");
+    }
+    ConfigReader w(job.world);
+    ReadWorld(w, &machine->world);
+    INSITU_RETURN_IF_ERROR(w.Finish());
+  }
+  return Status::Ok();
+}
+
+vision::ImageView View(const Frame& f) {
+  return {f.bytes.data(), f.width, f.height, f.stride_bytes(), f.bit_depth};
+}
+
+// The frame with marks drawn on it, half size: what the operator looks at to judge a view.
+Status SaveOverlay(const Frame& frame, const std::vector<Eigen::Vector2d>& points, int rgb,
+                   const std::string& path) {
+  try {
+    cv::Mat gray(frame.height, frame.width, frame.bit_depth > 8 ? CV_16UC1 : CV_8UC1,
+                 const_cast<uint8_t*>(frame.bytes.data()));
+    cv::Mat g8, color, small;
+    gray.convertTo(g8, CV_8U, frame.bit_depth > 8 ? 255.0 / frame.max_value() : 1.0);
+    cv::cvtColor(g8, color, cv::COLOR_GRAY2BGR);
+    const cv::Scalar c(rgb & 0xFF, (rgb >> 8) & 0xFF, (rgb >> 16) & 0xFF);
+    for (const Eigen::Vector2d& p : points) {
+      cv::circle(color, cv::Point(static_cast<int>(p.x()), static_cast<int>(p.y())), 9, c, 3,
+                 cv::LINE_AA);
+    }
+    cv::resize(color, small, cv::Size(), 0.5, 0.5, cv::INTER_AREA);
+    if (!cv::imwrite(path, small)) return DeviceError("cannot write " + path);
+  } catch (const cv::Exception& e) {
+    return DeviceError("cannot write " + path + ": " + e.what());
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+Result<Report> RunCalibrateJob(const LoadedJob& job, const RunOptions& options) {
+  const auto wall_start = std::chrono::steady_clock::now();
+  CalibrateSpec spec;
+  hw::MachineConfig config;
+  INSITU_RETURN_IF_ERROR(ReadSpec(job, &spec, &config));
+  auto previous = calib::LoadCalibration(spec.machine.calibration_path);
+  if (!previous.ok()) return previous.status().Prefixed(job.path + ": machine.calibration");
+  INSITU_ASSIGN_OR_RETURN(hw::Machine machine, hw::CreateMachine(config));
+  const hw::CameraInfo info = machine.camera->info();
+  std::error_code ec;
+  std::filesystem::create_directories(options.out_dir, ec);
+  if (ec) return NotFound("cannot create output folder " + options.out_dir);
+  const std::filesystem::path dir(options.out_dir);
+
+  Report report;
+  report.job = job.kind;
+  report.started = NowIso8601();
+  auto finish = [&](bool ok, const std::string& error) -> Result<Report> {
+    report.ok = ok;
+    report.error = error;
+    report.elapsed_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+    INSITU_RETURN_IF_ERROR(WriteReport(report, options.out_dir));
+    if (!ok) return Status(StatusCode::kFailedPrecondition, error);
+    return report;
+  };
+  auto log = Logger("job");
+
+  // 1. Intrinsics: the operator holds the board in `views` poses.
+  INSITU_RETURN_IF_ERROR(machine.camera->SetBinning(1));
+  INSITU_RETURN_IF_ERROR(machine.camera->SetExposure(spec.board_exposure_ms * 1e3));
+  INSITU_RETURN_IF_ERROR(machine.stage->MoveTo(spec.board_stage_z_mm));
+  (void)machine.scanner->StopPointer();
+  std::vector<std::vector<Eigen::Vector2d>> corners;
+  Progress progress("job", "board views", spec.views);
+  const vision::ChessboardOptions board{spec.board.inner_cols, spec.board.inner_rows};
+  for (int k = 0; k < spec.views; ++k) {
+  const Status placed = machine.person->PlaceBoard(k, spec.views);
+    if (!placed.ok()) return finish(false, placed.ToString());
+    auto frame = machine.camera->Grab();
+    if (!frame.ok()) return finish(false, frame.status().ToString());
+    auto found = vision::FindChessboard(View(*frame), board);
+    if (found.ok()) {
+      if (corners.empty()) {
+        const Status s = SaveOverlay(*frame, *found, 0xd62728, (dir / "board_view.png").string());
+        if (s.ok()) report.artifacts["board_view"] = "board_view.png";
+      }
+      corners.push_back(*found);
+    } else {
+      report.warnings.push_back("view " + std::to_string(k) + ": " + found.status().message());
+    }
+    progress.Update(k + 1);
+  }
+  (void)machine.person->RemoveBoard();
+  calib::IntrinsicsSummary intr = calib::CalibrateIntrinsics(
+      corners, spec.board, info.sensor_width_px, info.sensor_height_px, spec.intrinsics);
+  report.metrics["intrinsics_views"] = intr.views;
+  report.metrics["intrinsics_coverage"] = intr.coverage;
+  if (!intr.ok) return finish(false, "camera intrinsics: " + intr.message);
+  report.metrics["intrinsics_rms_px"] = intr.rms_px;
+  report.metrics["fx_px"] = intr.intrinsics.fx;
+  report.metrics["fy_px"] = intr.intrinsics.fy;
+  report.metrics["cx_px"] = intr.intrinsics.cx;
+  report.metrics["cy_px"] = intr.intrinsics.cy;
+  report.metrics["k1"] = intr.intrinsics.k1;
+  report.metrics["k2"] = intr.intrinsics.k2;
+  intr.intrinsics.model = info.model;
+  intr.intrinsics.serial = info.serial;
+  intr.intrinsics.lens = previous->camera.lens;
+  log->info("intrinsics: {} views, RMS {:.3f} px, fx {:.1f} px", intr.views, intr.rms_px,
+            intr.intrinsics.fx);
+
+  // 2. Camera pose in the galvo frame: pointer spots on the bare stage plate at known
+  // positions (a part would put them at unknown heights).
+  const Status cleared = machine.person->ClearTable();
+  if (!cleared.ok()) return finish(false, cleared.ToString());
+  INSITU_RETURN_IF_ERROR(machine.camera->SetExposure(spec.spot_exposure_ms * 1e3));
+  std::vector<calib::GalvoSpot> spots;
+  std::vector<Eigen::Vector2d> first_level;
+  Frame last;
+  for (double z : spec.spot_stage_z_mm) {
+    const Status moved = machine.stage->MoveTo(z);
+    if (!moved.ok()) return finish(false, "alignment: " + moved.ToString());
+    (void)machine.scanner->StopPointer();
+    auto dark = machine.camera->Grab();
+    if (!dark.ok()) return finish(false, dark.status().ToString());
+    for (double x = -spec.spot_half_size_mm; x <= spec.spot_half_size_mm + 1e-9; x += spec.spot_step_mm) {
+      for (double y = -spec.spot_half_size_mm; y <= spec.spot_half_size_mm + 1e-9; y += spec.spot_step_mm) {
+        const Eigen::Vector3d p(x, y, z);
+        const Status on = machine.scanner->StartPointerLine(p, p, 1.0);
+        if (!on.ok()) return finish(false, "alignment: " + on.ToString());
+        machine.clock->SleepFor(0.005);
+        auto lit = machine.camera->Grab();
+        if (!lit.ok()) return finish(false, lit.status().ToString());
+        auto spot = vision::FindSpot(View(*lit), View(*dark), {});
+        if (!spot.ok()) {
+          report.warnings.push_back("spot at (" + std::to_string(x) + ", " + std::to_string(y) +
+                                    ", " + std::to_string(z) + "): " + spot.status().message());
+          continue;
+        }
+        spots.push_back({p, spot->center});
+        if (z == spec.spot_stage_z_mm.front()) first_level.push_back(spot->center);
+        last = std::move(*lit);
+      }
+    }
+    (void)machine.scanner->StopPointer();
+  }
+  (void)machine.stage->MoveTo(0.0);
+  if (!last.bytes.empty() && SaveOverlay(last, first_level, 0x2ca02c, (dir / "spots.png").string()).ok()) {
+    report.artifacts["spots"] = "spots.png";
+  }
+  const calib::AlignmentSummary align =
+      calib::AlignCameraToGalvo(spots, intr.intrinsics, spec.alignment);
+  report.metrics["alignment_spots"] = align.spots;
+  if (!align.ok) return finish(false, "galvo alignment: " + align.message);
+  report.metrics["alignment_rms_px"] = align.rms_px;
+  report.metrics["alignment_rms_mm"] = align.rms_mm;
+  report.metrics["alignment_max_mm"] = align.max_mm;
+  log->info("galvo alignment: {} spots, residual {:.4f} mm rms", align.spots, align.rms_mm);
+
+  calib::CalibrationSet set = *previous;
+  set.produced_by = "calibrate job " + job.path;
+  set.created = report.started;
+  set.camera = intr.intrinsics;
+  set.galvo.camera_from_galvo = align.camera_from_galvo;
+  const Status saved = calib::SaveCalibration(set, spec.output_path);
+  if (!saved.ok()) return finish(false, saved.ToString());
+  report.artifacts["calibration"] = spec.output_path;
+  return finish(true, "");
+}
+
+}  // namespace insitu::job
