@@ -173,6 +173,37 @@ Result<CalibrationSet> LoadCalibration(const std::string& path) {
                                                  {at[0], at[1], at[2]}, roll);
   }
   if (g.ok()) g.FailFromValidate(set.galvo.Validate());
+  if (r.Has("height_lookup")) {
+    ConfigReader& h = r.Section("height_lookup");
+    std::vector<double> xs, zs;
+    h.Require("line_x_mm");
+    h.Require("stage_z_mm");
+    h.Read("line_x_mm", &xs);
+    h.Read("stage_z_mm", &zs);
+    h.Skip("curves");
+    std::vector<StripeCurve> curves;
+    const ConfigNode list = h.node().Child("curves");
+    for (size_t i = 0; list.IsSequence() && i < list.size(); ++i) {
+      auto row = list.At(i).AsDoubleList();
+      if (!row.ok() || row->size() < 3) {
+        h.Fail("curves", "entry " + std::to_string(i) + " must be [u_min, u_max, c0, c1, ...]");
+        break;
+      }
+      StripeCurve c;
+      c.u_min = (*row)[0];
+      c.u_max = (*row)[1];
+      c.coeffs.assign(row->begin() + 2, row->end());
+      curves.push_back(std::move(c));
+    }
+    if (h.ok()) {
+      auto lookup = HeightLookup::FromParts(xs, zs, std::move(curves));
+      if (lookup.ok()) {
+        set.height_lookup = std::move(*lookup);
+      } else {
+        h.Fail("curves", lookup.status().message());
+      }
+    }
+  }
   INSITU_RETURN_IF_ERROR(r.Finish());
   return set;
 }
@@ -197,6 +228,27 @@ Status SaveCalibration(const CalibrationSet& set, const std::string& path) {
      << "\n  pivot_height_mm: " << set.galvo.pivot_height_mm << "\n  camera_from_galvo:\n"
      << "    rotation_rodrigues_rad: [" << rv.x() << ", " << rv.y() << ", " << rv.z() << "]\n"
      << "    translation_mm: [" << t.x() << ", " << t.y() << ", " << t.z() << "]\n";
+  const HeightLookup& hl = set.height_lookup;
+  if (!hl.empty()) {
+    auto list = [&](const std::vector<double>& v) {
+      os << "[";
+      for (size_t i = 0; i < v.size(); ++i) os << (i ? ", " : "") << v[i];
+      os << "]";
+    };
+    os << "height_lookup:  # stripe curve v(u) of every (line offset, stage height), x-major\n"
+       << "  line_x_mm: ";
+    list(hl.line_x_mm());
+    os << "\n  stage_z_mm: ";
+    list(hl.stage_z_mm());
+    os << "\n  curves:\n";
+    for (const StripeCurve& c : hl.curves()) {
+      std::vector<double> row{c.u_min, c.u_max};
+      row.insert(row.end(), c.coeffs.begin(), c.coeffs.end());
+      os << "    - ";
+      list(row);
+      os << "\n";
+    }
+  }
   const std::string tmp = path + ".tmp";
   {
     std::ofstream f(tmp, std::ios::trunc);

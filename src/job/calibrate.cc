@@ -13,6 +13,7 @@
 #include "insitu/calib/calibration.h"
 #include "insitu/calib/camera_calibration.h"
 #include "insitu/core/log.h"
+#include "insitu/vision/stripe.h"
 #include "insitu/vision/targets.h"
 
 namespace insitu::job {
@@ -30,8 +31,21 @@ struct CalibrateSpec {
   double spot_half_size_mm = 40.0;
   double spot_step_mm = 20.0;
   calib::AlignmentOptions alignment;
+  // Height calibration (seed 000 sec. 2.2): plate at every height, line at every offset.
+  bool height = true;
+  double z_start_mm = -15.0, z_end_mm = 15.0, z_step_mm = 2.5;
+  double x_start_mm = -30.0, x_end_mm = 30.0, x_step_mm = 5.0;
+  double y_start_mm = -50.0, y_end_mm = 50.0;
+  double height_exposure_ms = 150.0;
+  double speed_mm_per_s = 5000.0;
   std::string output_path;
 };
+
+std::vector<double> Steps(double from, double to, double step) {
+  std::vector<double> v;
+  for (int i = 0; from + i * step <= to + 1e-9; ++i) v.push_back(from + i * step);
+  return v;
+}
 
 Status ReadSpec(const LoadedJob& job, CalibrateSpec* s, hw::MachineConfig* machine) {
   ConfigReader r(job.root);
@@ -70,6 +84,26 @@ Status ReadSpec(const LoadedJob& job, CalibrateSpec* s, hw::MachineConfig* machi
   if (al.ok() && !(s->spot_half_size_mm > 0)) al.Fail("half_size_mm", "must be > 0");
   if (al.ok() && s->spot_stage_z_mm.empty()) al.Fail("stage_z_mm", "must list at least one height");
   if (al.ok()) al.FailFromValidate(s->alignment.Validate());
+  if (r.Has("height")) {
+    ConfigReader& h = r.Section("height");
+    h.Read("enabled", &s->height);
+    h.Read("z_start_mm", &s->z_start_mm);
+    h.Read("z_end_mm", &s->z_end_mm);
+    h.Read("z_step_mm", &s->z_step_mm);
+    h.Read("x_start_mm", &s->x_start_mm);
+    h.Read("x_end_mm", &s->x_end_mm);
+    h.Read("x_step_mm", &s->x_step_mm);
+    h.Read("y_start_mm", &s->y_start_mm);
+    h.Read("y_end_mm", &s->y_end_mm);
+    h.Read("exposure_ms", &s->height_exposure_ms);
+    h.Read("speed_mm_per_s", &s->speed_mm_per_s);
+    if (h.ok() && !(s->z_step_mm > 0)) h.Fail("z_step_mm", "must be > 0");
+    if (h.ok() && !(s->x_step_mm > 0)) h.Fail("x_step_mm", "must be > 0");
+    if (h.ok() && !(s->z_end_mm > s->z_start_mm)) h.Fail("z_end_mm", "must exceed z_start_mm");
+    if (h.ok() && !(s->x_end_mm > s->x_start_mm)) h.Fail("x_end_mm", "must exceed x_start_mm");
+    if (h.ok() && !(s->height_exposure_ms > 0)) h.Fail("exposure_ms", "must be > 0");
+    if (h.ok() && !(s->speed_mm_per_s > 0)) h.Fail("speed_mm_per_s", "must be > 0");
+  }
   ConfigReader& out = r.Section("output");
   out.Require("calibration");
   std::string path;
@@ -236,14 +270,68 @@ Result<Report> RunCalibrateJob(const LoadedJob& job, const RunOptions& options) 
   report.metrics["alignment_max_mm"] = align.max_mm;
   log->info("galvo alignment: {} spots, residual {:.4f} mm rms", align.spots, align.rms_mm);
 
+  // 3. Height lookup: the bare plate at each stage height, a line at each offset.
+  calib::HeightLookup lookup;
+  if (spec.height) {
+    INSITU_RETURN_IF_ERROR(machine.camera->SetExposure(spec.height_exposure_ms * 1e3));
+    const std::vector<double> zs = Steps(spec.z_start_mm, spec.z_end_mm, spec.z_step_mm);
+    const std::vector<double> xs = Steps(spec.x_start_mm, spec.x_end_mm, spec.x_step_mm);
+    std::vector<calib::HeightObservation> observations;
+    vision::StripeOptions stripe_options;
+    stripe_options.direction = vision::StripeDirection::kColumns;
+    vision::StripeExtractor extractor(stripe_options);
+    vision::StripeResult stripe;
+    Progress hp("job", "height calibration frames", static_cast<int>(zs.size() * xs.size()));
+    int done = 0;
+    for (double z : zs) {
+      const Status moved = machine.stage->MoveTo(z);
+      if (!moved.ok()) return finish(false, "height calibration: " + moved.ToString());
+      for (double x : xs) {
+        const Status on = machine.scanner->StartPointerLine({x, spec.y_start_mm, 0.0},
+                                                            {x, spec.y_end_mm, 0.0},
+                                                            spec.speed_mm_per_s);
+        if (!on.ok()) return finish(false, "height calibration: " + on.ToString());
+        machine.clock->SleepFor(0.005);
+        auto frame = machine.camera->Grab();
+        if (!frame.ok()) return finish(false, frame.status().ToString());
+        const Status ex = extractor.Extract(View(*frame), &stripe);
+        if (!ex.ok()) return finish(false, ex.ToString());
+        calib::HeightObservation o{x, z, {}};
+        const double b = frame->binning;
+        for (size_t k = 0; k < stripe.status.size(); ++k) {
+          if (stripe.status[k] != vision::StripeStatus::kValid) continue;
+          // Full-sensor pixels: u_full = (u_b + 0.5) b - 0.5.
+          o.centres.emplace_back((stripe.u(static_cast<int>(k)) + 0.5) * b - 0.5,
+                                 (stripe.v(static_cast<int>(k)) + 0.5) * b - 0.5);
+        }
+        observations.push_back(std::move(o));
+        hp.Update(++done);
+      }
+    }
+    (void)machine.scanner->StopPointer();
+    (void)machine.stage->MoveTo(0.0);
+    calib::HeightLookupSummary hs;
+    lookup = calib::HeightLookup::Build(observations, &hs);
+    report.metrics["height_frames"] = static_cast<double>(observations.size());
+    if (!hs.ok) return finish(false, "height calibration: " + hs.message);
+    report.metrics["height_curve_fit_rms_px"] = hs.fit_rms_px;
+    report.metrics["height_curve_fit_max_px"] = hs.fit_max_px;
+    log->info("height lookup: {} offsets x {} heights, curve fit {:.3f} px rms", xs.size(),
+              zs.size(), hs.fit_rms_px);
+  }
+
   calib::CalibrationSet set = *previous;
+  set.height_lookup = lookup;
   set.produced_by = "calibrate job " + job.path;
   set.created = report.started;
   set.camera = intr.intrinsics;
   set.galvo.camera_from_galvo = align.camera_from_galvo;
   const Status saved = calib::SaveCalibration(set, spec.output_path);
   if (!saved.ok()) return finish(false, saved.ToString());
-  report.artifacts["calibration"] = spec.output_path;
+  std::error_code rel_ec;
+  const std::filesystem::path rel =
+      std::filesystem::relative(spec.output_path, options.out_dir, rel_ec);
+  report.artifacts["calibration"] = rel_ec ? spec.output_path : rel.string();
   return finish(true, "");
 }
 

@@ -61,11 +61,17 @@ Status ReadScanJob(const LoadedJob& job, ScanJobSpec* spec, hw::MachineConfig* m
   }
   ReadStripeOptions(r.Section("extraction"), &spec->extraction);
   ConfigReader& rec = r.Section("reconstruction");
+  const bool accuracy = job.kind == "accuracy";
+  if (accuracy) spec->method = 2;  // method 2, with method 1 from the same centres
   rec.Read("method", &spec->method);
-  if (rec.ok() && spec->method != 1) {
-    rec.Fail("method", "is " + std::to_string(spec->method) +
-                           "; this build reconstructs with method 1 (camera + light plane)");
+  if (rec.ok() && accuracy && spec->method != 2) {
+    rec.Fail("method", "must be 2 in an accuracy job (it reports method 1 alongside)");
   }
+  if (rec.ok() && spec->method != 1 && spec->method != 2) {
+    rec.Fail("method", "is " + std::to_string(spec->method) +
+                           ", expected 1 (camera + light plane) or 2 (plus height lookup)");
+  }
+  spec->scan.method = spec->method;
   ConfigReader& out = r.Section("output");
   out.Read("save_frames", &spec->save_frames);
   if (r.Has("artifact")) {
@@ -87,6 +93,9 @@ Status ReadScanJob(const LoadedJob& job, ScanJobSpec* spec, hw::MachineConfig* m
     if (a.ok()) a.FailFromValidate(spec->gauge.Validate());
   }
   INSITU_RETURN_IF_ERROR(r.Finish());
+  if (accuracy && !spec->has_artifact) {
+    return InvalidArgument(job.path + ": an accuracy job needs an artifact: section");
+  }
   *machine = spec->machine.config;
   if (machine->backend == "sim") {
     if (!job.world.IsDefined()) {
@@ -103,6 +112,45 @@ std::string FormatMm(double v) {
   char buf[32];
   std::snprintf(buf, sizeof(buf), "%g", v);
   return buf;
+}
+
+// Gauge metrics under their report names; `suffix` tells methods apart ("_method1").
+void AddGaugeMetrics(const StepGaugeResult& e, const StepGaugeSpec& gauge,
+                     const std::string& suffix, Report* report) {
+  auto& m = report->metrics;
+  m["height_error_max_abs_mm" + suffix] = e.max_abs_error_mm;
+  m["height_error_rms_mm" + suffix] = e.rms_error_mm;
+  m["height_error_max_abs_binned_mm" + suffix] = e.max_abs_binned_error_mm;
+  m["length_mm" + suffix] = e.length_mm;
+  m["length_std_mm" + suffix] = e.length_std_mm;
+  m["length_error_mm" + suffix] = e.length_mm - gauge.length_mm;
+  m["length_lines" + suffix] = e.length_lines;
+  m["gauge_points" + suffix] = e.points;
+  for (const StepResult& s : e.steps) {
+    const std::string name = "step_" + FormatMm(s.nominal_mm) + "mm" + suffix;
+    m["height_error_mean_mm_" + name] = s.mean_error_mm;
+    m["height_error_max_abs_mm_" + name] = s.max_abs_error_mm;
+    m["points_" + name] = s.points;
+    if (s.points == 0) report->warnings.push_back("no scan point on " + name);
+  }
+}
+
+void AddGaugeSeries(const StepGaugeResult& e, const std::string& prefix, int first_color,
+                    PlotSpec* plot) {
+  for (size_t i = 0; i < e.steps.size(); ++i) {
+    const StepResult& s = e.steps[i];
+    plot->series.push_back({prefix + FormatMm(s.nominal_mm) + " mm step", s.bin_y_mm,
+                            s.bin_mean_error_mm, PlotColor(first_color + static_cast<int>(i))});
+  }
+}
+
+void AddStepMeans(const StepGaugeResult& e, const std::string& label, int rgb, PlotSpec* plot) {
+  PlotSeries series{label, {}, {}, rgb};
+  for (const StepResult& s : e.steps) {
+    series.x.push_back(s.nominal_mm);
+    series.y.push_back(s.mean_error_mm);
+  }
+  plot->series.push_back(std::move(series));
 }
 
 Result<Report> RunScanJob(const LoadedJob& job, const RunOptions& options) {
@@ -161,6 +209,14 @@ Result<Report> RunScanJob(const LoadedJob& job, const RunOptions& options) {
   report.metrics["columns_saturated"] = static_cast<double>(st.saturated);
   report.metrics["columns_two_peaks"] = static_cast<double>(st.two_peaks);
   report.metrics["columns_too_wide"] = static_cast<double>(st.too_wide);
+  if (spec.method == 2) {
+    report.metrics["points_outside_lookup"] = static_cast<double>(st.outside_lookup);
+    if (st.outside_lookup > 0) {
+      report.warnings.push_back(std::to_string(st.outside_lookup) +
+                                " stripe points fell outside the height calibration's volume "
+                                "and were left out");
+    }
+  }
   report.metrics["machine_time_s"] = st.machine_time_s;
   report.metrics["extract_time_ms_per_frame"] = st.lines ? st.extract_time_ms / st.lines : 0.0;
   if (st.saturated > 0) {
@@ -169,34 +225,38 @@ Result<Report> RunScanJob(const LoadedJob& job, const RunOptions& options) {
   }
 
   if (spec.has_artifact) {
+    // The accuracy job compares both methods on the same frames (seed 000 Fig. 5).
+    const bool both = job.kind == "accuracy";
     auto eval = EvaluateStepGauge(cloud, spec.gauge);
     if (!eval.ok()) return finish(false, eval.status().ToString());
-    report.metrics["height_error_max_abs_mm"] = eval->max_abs_error_mm;
-    report.metrics["height_error_rms_mm"] = eval->rms_error_mm;
-    report.metrics["length_mm"] = eval->length_mm;
-    report.metrics["length_std_mm"] = eval->length_std_mm;
-    report.metrics["length_error_mm"] = eval->length_mm - spec.gauge.length_mm;
-    report.metrics["length_lines"] = eval->length_lines;
-    report.metrics["gauge_points"] = eval->points;
+    AddGaugeMetrics(*eval, spec.gauge, "", &report);
     PlotSpec plot;
-    plot.title = "Height error along the scan line, method " + std::to_string(spec.method) +
-                 " (seed 000 Fig. 5b)";
+    plot.title = both ? "Height error along the scan line, methods 1 and 2 (seed 000 Fig. 5b)"
+                      : "Height error along the scan line, method " +
+                            std::to_string(spec.method) + " (seed 000 Fig. 5b)";
     plot.x_label = "y (mm)";
     plot.y_label = "height error (mm)";
-    for (size_t i = 0; i < eval->steps.size(); ++i) {
-      const StepResult& s = eval->steps[i];
-      const std::string name = "step_" + FormatMm(s.nominal_mm) + "mm";
-      report.metrics["height_error_mean_mm_" + name] = s.mean_error_mm;
-      report.metrics["height_error_max_abs_mm_" + name] = s.max_abs_error_mm;
-      report.metrics["points_" + name] = s.points;
-      if (s.points == 0) report.warnings.push_back("no scan point on " + name);
-      plot.series.push_back({FormatMm(s.nominal_mm) + " mm step", s.bin_y_mm,
-                             s.bin_mean_error_mm, PlotColor(static_cast<int>(i))});
+    AddGaugeSeries(*eval, both ? "method 2, " : "", 0, &plot);
+    PlotSpec heights;
+    heights.title = "Mean height error per step (seed 000 Fig. 5a)";
+    heights.x_label = "nominal step height (mm)";
+    heights.y_label = "mean height error (mm)";
+    heights.reference_y = {0.0};
+    AddStepMeans(*eval, "method " + std::to_string(spec.method), PlotColor(1), &heights);
+    if (both) {
+      auto eval1 = EvaluateStepGauge(scanned->cloud_method1, spec.gauge);
+      if (!eval1.ok()) return finish(false, eval1.status().ToString());
+      AddGaugeMetrics(*eval1, spec.gauge, "_method1", &report);
+      AddGaugeSeries(*eval1, "method 1, ", 4, &plot);
+      AddStepMeans(*eval1, "method 1", PlotColor(0), &heights);
     }
-    const std::string png = (std::filesystem::path(options.out_dir) / "height_error.png").string();
-    const Status plotted = SavePlotPng(plot, png);
+    const std::filesystem::path dir(options.out_dir);
+    const std::string name = both ? "accuracy.png" : "height_error.png";
+    Status plotted = SavePlotPng(plot, (dir / name).string());
+    if (plotted.ok() && both) plotted = SavePlotPng(heights, (dir / "step_heights.png").string());
     if (!plotted.ok()) return finish(false, plotted.ToString());
-    report.artifacts["height_error"] = "height_error.png";
+    report.artifacts[both ? "accuracy" : "height_error"] = name;
+    if (both) report.artifacts["step_heights"] = "step_heights.png";
   }
   log->info("scan: {} points from {} lines", cloud.size(), st.lines);
   return finish(true, "");
@@ -204,10 +264,10 @@ Result<Report> RunScanJob(const LoadedJob& job, const RunOptions& options) {
 
 }  // namespace
 
-std::vector<std::string> JobKinds() { return {"scan", "calibrate"}; }
+std::vector<std::string> JobKinds() { return {"scan", "accuracy", "calibrate"}; }
 
 Result<Report> RunJob(const LoadedJob& job, const RunOptions& options) {
-  if (job.kind == "scan") return RunScanJob(job, options);
+  if (job.kind == "scan" || job.kind == "accuracy") return RunScanJob(job, options);
   if (job.kind == "calibrate") return RunCalibrateJob(job, options);
   std::string kinds;
   for (const std::string& k : JobKinds()) kinds += (kinds.empty() ? "" : ", ") + k;

@@ -32,6 +32,9 @@ Status ScanOptions::Validate() const {
     return InvalidArgument("exposure_ms must be > 0, got " + std::to_string(exposure_ms));
   }
   if (!(gain_db >= 0)) return InvalidArgument("gain_db must be >= 0, got " + std::to_string(gain_db));
+  if (method != 1 && method != 2) {
+    return InvalidArgument("method must be 1 or 2, got " + std::to_string(method));
+  }
   if (binning != 1 && binning != 2 && binning != 4) {
     return InvalidArgument("binning must be 1, 2 or 4, got " + std::to_string(binning));
   }
@@ -65,6 +68,10 @@ Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
                            const std::atomic<bool>* cancel) {
   INSITU_RETURN_IF_ERROR(options.Validate());
   INSITU_RETURN_IF_ERROR(stripe_options.Validate());
+  if (options.method == 2 && calibration.height_lookup.empty()) {
+    return FailedPrecondition("method 2 needs a height lookup in the calibration file: run the "
+                              "calibrate job with its height step");
+  }
   const hw::CameraInfo info = machine.camera->info();
   INSITU_RETURN_IF_ERROR(calib::CheckCameraMatches(calibration.camera, info.model, info.serial,
                                                    info.sensor_width_px,
@@ -136,12 +143,30 @@ Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
         ++out.stats.rejected_geometry;
         continue;
       }
+      Eigen::Vector3d point = galvo_from_camera * *p_cam;
       geometry::CloudPoint cp;
-      cp.point_in_galvo = (galvo_from_camera * *p_cam).cast<float>();
       cp.intensity = stripe.peak[index[k]];
       cp.line = i;
       cp.pixel_u = static_cast<float>(pixels[k].x());
       cp.pixel_v = static_cast<float>(pixels[k].y());
+      if (options.method == 2) {
+        cp.point_in_galvo = point.cast<float>();
+        out.cloud_method1.push_back(cp);
+        // Seed 000 method 2: the height from the lookup, the point where this pixel's ray
+        // reaches that height.
+        const double b = options.binning;
+        const auto h = calibration.height_lookup.Height(x, (pixels[k].x() + 0.5) * b - 0.5,
+                                                        (pixels[k].y() + 0.5) * b - 0.5);
+        if (!h) {
+          ++out.stats.outside_lookup;
+          continue;
+        }
+        const Eigen::Vector3d origin = galvo_from_camera.translation();
+        const Eigen::Vector3d dir = galvo_from_camera.linear() *
+                                    Eigen::Vector3d(normalized[k].x(), normalized[k].y(), 1.0);
+        point = origin + dir * ((*h - origin.z()) / dir.z());
+      }
+      cp.point_in_galvo = point.cast<float>();
       out.cloud.push_back(cp);
     }
     ++out.stats.lines;

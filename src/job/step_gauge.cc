@@ -37,6 +37,7 @@ Result<StepGaugeResult> EvaluateStepGauge(const geometry::Cloud& cloud, const St
   struct Extent {
     double y_min = std::numeric_limits<double>::infinity();
     double y_max = -std::numeric_limits<double>::infinity();
+    int points = 0;
   };
   std::map<int, Extent> extents;
 
@@ -52,6 +53,7 @@ Result<StepGaugeResult> EvaluateStepGauge(const geometry::Cloud& cloud, const St
       Extent& e = extents[p.line];
       e.y_min = std::min(e.y_min, y);
       e.y_max = std::max(e.y_max, y);
+      ++e.points;
     }
     if (x <= step_lo + s.edge_margin_mm || x >= step_hi - s.edge_margin_mm) continue;
     if (y <= y_lo + s.edge_margin_mm || y >= y_hi - s.edge_margin_mm) continue;
@@ -86,13 +88,17 @@ Result<StepGaugeResult> EvaluateStepGauge(const geometry::Cloud& cloud, const St
       st.bin_y_mm.push_back(y_lo + (b + 0.5) * s.bin_mm);
       st.bin_mean_error_mm.push_back(bin_count[i][b] > 0 ? bin_sum[i][b] / bin_count[i][b]
                                                          : std::nan(""));
+      if (bin_count[i][b] > 0) {
+        r.max_abs_binned_error_mm =
+            std::max(r.max_abs_binned_error_mm, std::abs(st.bin_mean_error_mm.back()));
+      }
     }
   }
   // A line counts for the length only if it reached both ends of the top (within 2 mm).
   double sum = 0, sum_sq = 0;
   for (const auto& [line, e] : extents) {
-    if (e.y_min > y_lo + 2.0 || e.y_max < y_hi - 2.0) continue;
-    const double len = e.y_max - e.y_min;
+    if (e.y_min > y_lo + 2.0 || e.y_max < y_hi - 2.0 || e.points < 2) continue;
+    const double len = (e.y_max - e.y_min) * e.points / (e.points - 1.0);
     sum += len;
     sum_sq += len * len;
     ++r.length_lines;

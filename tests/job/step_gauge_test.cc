@@ -7,15 +7,15 @@
 namespace insitu::job {
 namespace {
 
-// A synthetic cloud: lines every 0.5 mm in x, points every 0.1 mm in y over the gauge's
-// length, each step's top raised by a known error.
+// A synthetic cloud: lines every 0.5 mm in x; points at the centres of 0.1 mm columns along
+// the gauge's length (as camera columns sample it), each step's top raised by a known error.
 geometry::Cloud SyntheticGauge(const std::vector<double>& errors) {
   geometry::Cloud cloud;
   const double heights[] = {3, 5, 10, 15};
   int line = 0;
   for (double x = -9.75; x < 10; x += 0.5, ++line) {
     const int step = static_cast<int>(std::floor((x + 10) / 5));
-    for (double y = -40.0; y <= 40.0 + 1e-9; y += 0.1) {
+    for (double y = -39.95; y < 40.0; y += 0.1) {
       geometry::CloudPoint p;
       p.point_in_galvo = Eigen::Vector3f(x, y, heights[step] + errors[step]);
       p.line = line;

@@ -12,6 +12,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "insitu/calib/height_lookup.h"
 #include "insitu/core/status.h"
 
 namespace insitu::calib {
@@ -53,6 +54,7 @@ struct CalibrationSet {
   std::string created;      // ISO 8601
   CameraIntrinsics camera;
   GalvoGeometry galvo;
+  HeightLookup height_lookup;  // empty until a height calibration has run (method 2 needs it)
 
   Status Validate() const;
 };

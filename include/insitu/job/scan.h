@@ -26,6 +26,9 @@ struct ScanOptions {
   double exposure_ms = 50.0;       // seed 000 sec. 3.2
   double gain_db = 0.0;
   int binning = 1;
+  // 1: camera + light plane (seed 000 method 1); 2: method 1's ray, height from the
+  // calibration's height lookup (seed 000 method 2).
+  int method = 1;
 
   Status Validate() const;
   int line_count() const;
@@ -37,12 +40,14 @@ struct ScanStats {
   int64_t scan_lines_examined = 0;  // columns (or rows) over all frames
   int64_t valid = 0, none = 0, saturated = 0, two_peaks = 0, too_wide = 0;
   int64_t rejected_geometry = 0;     // valid centre whose ray misses the light plane
+  int64_t outside_lookup = 0;        // method 2: centre outside the calibrated volume
   double machine_time_s = 0.0;       // on the machine's clock
   double extract_time_ms = 0.0;      // wall time in the stripe extractor, all frames
 };
 
 struct ScanOutput {
   geometry::Cloud cloud;
+  geometry::Cloud cloud_method1;  // method 2 only: the same centres reconstructed by method 1
   ScanStats stats;
 };
 

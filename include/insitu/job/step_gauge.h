@@ -42,8 +42,14 @@ struct StepGaugeResult {
   int points = 0;
   double max_abs_error_mm = 0.0;
   double rms_error_mm = 0.0;
+  // Largest |mean error| of any bin_mm slice along y of any step: the curves of seed 000
+  // Fig. 5b, where single-point noise (speckle) averages out.
+  double max_abs_binned_error_mm = 0.0;
   int length_lines = 0;          // scan lines that crossed a top over its whole length
-  double length_mm = 0.0;        // mean over those lines of y_last - y_first on the top
+  // Mean over those lines of y_last - y_first on the top, plus one point spacing: each point
+  // stands for a column one spacing wide, so the top reaches half a spacing past the first
+  // and the last point.
+  double length_mm = 0.0;
   double length_std_mm = 0.0;
 };
 
