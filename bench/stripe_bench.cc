@@ -6,7 +6,7 @@
 // run. After the runs the ratios are printed.
 //
 //   build/bin/stripe_bench                                   # all benchmarks, then the ratios
-//   build/bin/stripe_bench --benchmark_filter='Copy|Extract$'  # only the ones the ratio needs
+//   build/bin/stripe_bench --benchmark_filter='Copy|Baseline|StripeExtract/'  # the ratios only
 //
 // The three benchmarks of the ratios run 5 repetitions each and the ratios use the fastest
 // repetition of each: on a shared machine other processes only ever add time, so the minimum is

@@ -9,6 +9,7 @@ PACKAGES=(
   libeigen3-dev libopencv-dev libaravis-dev aravis-tools libpcl-dev libflann-dev
   libceres-dev libusb-1.0-0-dev
   libyaml-cpp-dev nlohmann-json3-dev libspdlog-dev libcli11-dev libasio-dev
+  libqrencode-dev libdmtx-dev libzbar-dev libtinyxml2-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3
 )

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -251,8 +252,12 @@ Status SaveCalibration(const CalibrationSet& set, const std::string& path) {
   }
   const std::string tmp = path + ".tmp";
   {
+    const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+    std::error_code ec;
+    if (!parent.empty()) std::filesystem::create_directories(parent, ec);
+    if (ec) return DeviceError("cannot create directory " + parent.string() + ": " + ec.message());
     std::ofstream f(tmp, std::ios::trunc);
-    if (!f) return NotFound("cannot write " + tmp);
+    if (!f) return DeviceError("cannot write " + tmp);
     f << os.str();
     if (!f.good()) return DeviceError("write failed: " + tmp);
   }

@@ -88,18 +88,45 @@ HeightLookup HeightLookup::Build(const std::vector<HeightObservation>& obs,
         c.u_min = std::min(c.u_min, p.x());
         c.u_max = std::max(c.u_max, p.x());
       }
-      Eigen::MatrixXd a(o.centres.size(), kDegree + 1);
-      Eigen::VectorXd b(o.centres.size());
-      for (size_t r = 0; r < o.centres.size(); ++r) {
-        const double t = (2.0 * o.centres[r].x() - c.u_min - c.u_max) / (c.u_max - c.u_min);
-        double tk = 1.0;
-        for (int k = 0; k <= kDegree; ++k, tk *= t) a(r, k) = tk;
-        b(r) = o.centres[r].y();
+      // Least squares, then again without the centres far off the curve (a few columns of a
+      // reflection or of the line's turning ends would otherwise bend it): off means beyond
+      // 5 robust sigmas (1.4826 MAD of the residuals) and beyond 1 px.
+      std::vector<char> keep(o.centres.size(), 1);
+      std::vector<double> residual(o.centres.size());
+      for (int pass = 0; pass < 3; ++pass) {
+        const size_t n = std::count(keep.begin(), keep.end(), 1);
+        Eigen::MatrixXd a(n, kDegree + 1);
+        Eigen::VectorXd b(n);
+        for (size_t r = 0, row = 0; r < o.centres.size(); ++r) {
+          if (!keep[r]) continue;
+          const double t = (2.0 * o.centres[r].x() - c.u_min - c.u_max) / (c.u_max - c.u_min);
+          double tk = 1.0;
+          for (int k = 0; k <= kDegree; ++k, tk *= t) a(row, k) = tk;
+          b(row++) = o.centres[r].y();
+        }
+        const Eigen::VectorXd coeffs = a.colPivHouseholderQr().solve(b);
+        c.coeffs.assign(coeffs.data(), coeffs.data() + coeffs.size());
+        std::vector<double> abs_kept;
+        for (size_t r = 0; r < o.centres.size(); ++r) {
+          residual[r] = c.Eval(o.centres[r].x()) - o.centres[r].y();
+          if (keep[r]) abs_kept.push_back(std::abs(residual[r]));
+        }
+        std::nth_element(abs_kept.begin(), abs_kept.begin() + abs_kept.size() / 2, abs_kept.end());
+        const double limit = std::max(1.0, 5.0 * 1.4826 * abs_kept[abs_kept.size() / 2]);
+        bool changed = false;
+        for (size_t r = 0; r < o.centres.size(); ++r) {
+          const char k = std::abs(residual[r]) <= limit;
+          changed |= k != keep[r];
+          keep[r] = k;
+        }
+        if (!changed) break;
       }
-      const Eigen::VectorXd coeffs = a.colPivHouseholderQr().solve(b);
-      c.coeffs.assign(coeffs.data(), coeffs.data() + coeffs.size());
       for (size_t r = 0; r < o.centres.size(); ++r) {
-        const double e = c.Eval(o.centres[r].x()) - o.centres[r].y();
+        if (!keep[r]) {
+          ++summary->outliers;
+          continue;
+        }
+        const double e = residual[r];
         sum_sq += e * e;
         summary->fit_max_px = std::max(summary->fit_max_px, std::abs(e));
         ++count;

@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 
 #include <opencv2/core.hpp>
@@ -49,11 +50,7 @@ std::vector<double> Steps(double from, double to, double step) {
 
 Status ReadSpec(const LoadedJob& job, CalibrateSpec* s, hw::MachineConfig* machine) {
   ConfigReader r(job.root);
-  std::string text;
-  r.Read("job", &text);
-  r.Read("description", &text);
-  r.Skip("world");
-  ReadMachine(r, job.folder, &s->machine);
+  ReadJobHeader(r, job, &s->machine);
   ConfigReader& b = r.Section("board");
   b.Read("inner_cols", &s->board.inner_cols);
   b.Read("inner_rows", &s->board.inner_rows);
@@ -110,16 +107,7 @@ Status ReadSpec(const LoadedJob& job, CalibrateSpec* s, hw::MachineConfig* machi
   out.Read("calibration", &path);
   s->output_path = ResolvePath(job.folder, path);
   INSITU_RETURN_IF_ERROR(r.Finish());
-  *machine = s->machine.config;
-  if (machine->backend == "sim") {
-    if (!job.world.IsDefined()) {
-      return InvalidArgument(job.path + ": machine.backend is sim but the job names no world");
-    }
-    ConfigReader w(job.world);
-    ReadWorld(w, &machine->world);
-    INSITU_RETURN_IF_ERROR(w.Finish());
-  }
-  return Status::Ok();
+  return MachineConfigFor(job, s->machine, machine);
 }
 
 vision::ImageView View(const Frame& f) {
@@ -159,24 +147,33 @@ Result<Report> RunCalibrateJob(const LoadedJob& job, const RunOptions& options) 
   if (!previous.ok()) return previous.status().Prefixed(job.path + ": machine.calibration");
   INSITU_ASSIGN_OR_RETURN(hw::Machine machine, hw::CreateMachine(config));
   const hw::CameraInfo info = machine.camera->info();
-  std::error_code ec;
-  std::filesystem::create_directories(options.out_dir, ec);
-  if (ec) return NotFound("cannot create output folder " + options.out_dir);
+  INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir));
   const std::filesystem::path dir(options.out_dir);
-
-  Report report;
-  report.job = job.kind;
-  report.started = NowIso8601();
-  auto finish = [&](bool ok, const std::string& error) -> Result<Report> {
-    report.ok = ok;
-    report.error = error;
-    report.elapsed_s =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
-    INSITU_RETURN_IF_ERROR(WriteReport(report, options.out_dir));
-    if (!ok) return Status(StatusCode::kFailedPrecondition, error);
-    return report;
+  auto finish = [&](bool ok, const std::string& error) {
+    return FinishReport(report, ok, error, wall_start, options.out_dir, StatusCode::kFailedPrecondition);
   };
   auto log = Logger("job");
+
+  // Every stage height the job will ask for is checked against the stage's travel before the
+  // first frame, so a bad job file fails now and not after minutes of measuring.
+  {
+    const double lo = machine.stage->min_z_mm(), hi = machine.stage->max_z_mm();
+    std::vector<std::pair<std::string, double>> heights{
+        {"intrinsics.stage_z_mm", spec.board_stage_z_mm}};
+    for (double z : spec.spot_stage_z_mm) heights.emplace_back("alignment.stage_z_mm", z);
+    if (spec.height) {
+      heights.emplace_back("height.z_start_mm", spec.z_start_mm);
+      heights.emplace_back("height.z_end_mm", spec.z_end_mm);
+    }
+    for (const auto& [key, z] : heights) {
+      if (z < lo || z > hi) {
+        char text[160];
+        std::snprintf(text, sizeof text, ": %g mm is outside the stage travel [%g, %g] mm", z,
+                      lo, hi);
+        return InvalidArgument(job.path + ": " + key + text);
+      }
+    }
+  }
 
   // 1. Intrinsics: the operator holds the board in `views` poses.
   INSITU_RETURN_IF_ERROR(machine.camera->SetBinning(1));
@@ -316,6 +313,7 @@ Result<Report> RunCalibrateJob(const LoadedJob& job, const RunOptions& options) 
     if (!hs.ok) return finish(false, "height calibration: " + hs.message);
     report.metrics["height_curve_fit_rms_px"] = hs.fit_rms_px;
     report.metrics["height_curve_fit_max_px"] = hs.fit_max_px;
+    report.metrics["height_curve_outliers"] = hs.outliers;
     log->info("height lookup: {} offsets x {} heights, curve fit {:.3f} px rms", xs.size(),
               zs.size(), hs.fit_rms_px);
   }
@@ -326,8 +324,16 @@ Result<Report> RunCalibrateJob(const LoadedJob& job, const RunOptions& options) 
   set.created = report.started;
   set.camera = intr.intrinsics;
   set.galvo.camera_from_galvo = align.camera_from_galvo;
+  // A copy beside the report first: if the configured file cannot be written, what was
+  // measured is still there (and the previous calibration stays in effect).
+  const std::string copy = (dir / "calibration.yaml").string();
+  const Status copied = calib::SaveCalibration(set, copy);
+  if (copied.ok()) report.artifacts["calibration_copy"] = "calibration.yaml";
   const Status saved = calib::SaveCalibration(set, spec.output_path);
-  if (!saved.ok()) return finish(false, saved.ToString());
+  if (!saved.ok()) {
+    return finish(false, saved.ToString() +
+                             (copied.ok() ? "; the measured calibration is in " + copy : ""));
+  }
   std::error_code rel_ec;
   const std::filesystem::path rel =
       std::filesystem::relative(spec.output_path, options.out_dir, rel_ec);

@@ -27,6 +27,16 @@ Result<LoadedJob> LoadJobFile(const std::string& path, const std::vector<std::st
     if (!loaded.ok()) return loaded.status().Prefixed(world.Where());
     job.world = *loaded;
   }
+  // What differs from the world file for this job (simulator only): typically the part the
+  // operator put on the stage and where.
+  const ConfigNode changes = job.root.Child("world_changes");
+  if (changes.IsDefined()) {
+    if (!changes.IsMap()) return InvalidArgument(changes.Where() + ": expected a map of world keys");
+    if (!job.world.IsDefined()) {
+      return InvalidArgument(changes.Where() + ": the job names no world: file to change");
+    }
+    INSITU_RETURN_IF_ERROR(job.world.Merge(changes));
+  }
   for (const std::string& s : sets) {
     const size_t eq = s.find('=');
     if (eq == std::string::npos || eq == 0) {
@@ -132,6 +142,7 @@ void ReadWorld(ConfigReader& r, sim::WorldOptions* w) {
   p.ReadArray("position_mm", po.position_mm.data(), 2);
   p.Read("rotation_deg", &po.rotation_deg);
   p.Read("albedo", &po.albedo);
+  p.Read("ablation_threshold_j_per_cm2", &po.ablation_threshold_j_per_cm2);
   p.Read("plane_thickness_mm", &po.plane_thickness_mm);
   p.ReadArray("plane_size_mm", po.plane_size_mm.data(), 2);
   p.Read("gauge_length_mm", &po.gauge_length_mm);
@@ -155,6 +166,7 @@ void ReadWorld(ConfigReader& r, sim::WorldOptions* w) {
   st.Read("max_z_mm", &w->stage.max_z_mm);
   st.Read("speed_mm_per_s", &w->stage.speed_mm_per_s);
   st.Read("plate_albedo", &w->stage.plate_albedo);
+  st.Read("plate_ablation_threshold_j_per_cm2", &w->stage.plate_ablation_threshold_j_per_cm2);
   st.Read("plate_size_mm", &w->stage.plate_size_mm);
   if (st.ok()) st.FailFromValidate(w->stage.Validate());
 
@@ -196,6 +208,7 @@ void ReadStripeOptions(ConfigReader& r, vision::StripeOptions* o) {
   r.Read("min_contrast", &o->min_contrast);
   r.Read("max_width_px", &o->max_width_px);
   r.Read("min_peak_separation_px", &o->min_peak_separation_px);
+  r.Read("second_peak_ratio", &o->second_peak_ratio);
   r.Read("saturation_level", &o->saturation_level);
   r.Read("subtract_threshold", &o->subtract_threshold);
   if (r.ok()) r.FailFromValidate(o->Validate());
@@ -208,6 +221,28 @@ void ReadMachine(ConfigReader& root, const std::string& folder, MachineSpec* spe
   std::string calibration;
   m.Read("calibration", &calibration);
   spec->calibration_path = ResolvePath(folder, calibration);
+}
+
+void ReadJobHeader(ConfigReader& r, const LoadedJob& job, MachineSpec* machine) {
+  std::string text;
+  r.Read("job", &text);
+  r.Read("description", &text);
+  r.Skip("world");
+  r.Skip("world_changes");
+  ReadMachine(r, job.folder, machine);
+}
+
+Status MachineConfigFor(const LoadedJob& job, const MachineSpec& spec, hw::MachineConfig* out) {
+  *out = spec.config;
+  if (out->backend == "sim") {
+    if (!job.world.IsDefined()) {
+      return InvalidArgument(job.path + ": machine.backend is sim but the job names no world");
+    }
+    ConfigReader w(job.world);
+    ReadWorld(w, &out->world);
+    INSITU_RETURN_IF_ERROR(w.Finish());
+  }
+  return Status::Ok();
 }
 
 }  // namespace insitu::job

@@ -53,4 +53,26 @@ Status WriteReport(const Report& report, const std::string& dir) {
   return Status::Ok();
 }
 
+Result<Report> StartReport(const std::string& job_kind, const std::string& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) return NotFound("cannot create output folder " + dir + ": " + ec.message());
+  Report report;
+  report.job = job_kind;
+  report.started = NowIso8601();
+  return report;
+}
+
+Result<Report> FinishReport(Report& report, bool ok, const std::string& error,
+                            std::chrono::steady_clock::time_point start, const std::string& dir,
+                            StatusCode failure) {
+  report.ok = ok;
+  report.error = error;
+  report.elapsed_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  INSITU_RETURN_IF_ERROR(WriteReport(report, dir));
+  if (!ok) return Status(failure, error);
+  return report;
+}
+
 }  // namespace insitu::job

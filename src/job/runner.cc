@@ -1,111 +1,56 @@
 #include "insitu/job/runner.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 
 #include "insitu/calib/calibration.h"
 #include "insitu/core/log.h"
 #include "insitu/geometry/cloud.h"
+#include "insitu/job/insert.h"
 #include "insitu/job/plot.h"
 #include "insitu/job/scan.h"
 #include "insitu/job/step_gauge.h"
 #include "job/calibrate.h"
+#include "job/mark.h"
+#include "job/scan_job.h"
 
 namespace insitu::job {
 namespace {
 
-struct ScanJobSpec {
-  MachineSpec machine;
-  ScanOptions scan;
-  vision::StripeOptions extraction;
-  int method = 1;
-  bool has_artifact = false;
-  StepGaugeSpec gauge;
-  bool save_frames = false;
-};
-
-void ReadScanSection(ConfigReader& r, ScanOptions* s) {
-  r.Read("x_start_mm", &s->x_start_mm);
-  r.Read("x_end_mm", &s->x_end_mm);
-  r.Read("line_spacing_mm", &s->line_spacing_mm);
-  r.Read("y_start_mm", &s->y_start_mm);
-  r.Read("y_end_mm", &s->y_end_mm);
-  r.Read("focus_z_mm", &s->focus_z_mm);
-  r.Read("speed_mm_per_s", &s->speed_mm_per_s);
-  r.Read("settle_ms", &s->settle_ms);
-}
-
-Status ReadScanJob(const LoadedJob& job, ScanJobSpec* spec, hw::MachineConfig* machine) {
-  ConfigReader r(job.root);
-  std::string kind;
-  r.Read("job", &kind);
-  r.Read("description", &kind);
-  r.Skip("world");
-  ReadMachine(r, job.folder, &spec->machine);
-  ConfigReader& scan = r.Section("scan");
-  ReadScanSection(scan, &spec->scan);
-  ConfigReader& cam = r.Section("camera");
-  cam.Read("exposure_ms", &spec->scan.exposure_ms);
-  cam.Read("gain_db", &spec->scan.gain_db);
-  cam.Read("binning", &spec->scan.binning);
-  if (scan.ok() && cam.ok()) {
-    const Status st = spec->scan.Validate();
-    // The check names a key of either section; point at whichever holds it.
-    const std::string first = st.message().substr(0, st.message().find(' '));
-    if (cam.Has(first) || first == "exposure_ms" || first == "gain_db" || first == "binning") {
-      cam.FailFromValidate(st);
-    } else {
-      scan.FailFromValidate(st);
-    }
-  }
-  ReadStripeOptions(r.Section("extraction"), &spec->extraction);
-  ConfigReader& rec = r.Section("reconstruction");
-  const bool accuracy = job.kind == "accuracy";
-  if (accuracy) spec->method = 2;  // method 2, with method 1 from the same centres
-  rec.Read("method", &spec->method);
-  if (rec.ok() && accuracy && spec->method != 2) {
-    rec.Fail("method", "must be 2 in an accuracy job (it reports method 1 alongside)");
-  }
-  if (rec.ok() && spec->method != 1 && spec->method != 2) {
-    rec.Fail("method", "is " + std::to_string(spec->method) +
-                           ", expected 1 (camera + light plane) or 2 (plus height lookup)");
-  }
-  spec->scan.method = spec->method;
-  ConfigReader& out = r.Section("output");
-  out.Read("save_frames", &spec->save_frames);
+void ReadArtifact(ConfigReader& r, ScanJobSpec* spec) {
   if (r.Has("artifact")) {
-    spec->has_artifact = true;
     ConfigReader& a = r.Section("artifact");
-    std::string akind;
     a.Require("kind");
-    a.ReadEnum("kind", &akind, {"step_gauge"});
-    a.Read("heights_mm", &spec->gauge.heights_mm);
-    a.Read("step_width_mm", &spec->gauge.step_width_mm);
-    a.Read("length_mm", &spec->gauge.length_mm);
-    double center[2] = {0, 0};
-    a.ReadArray("center_mm", center, 2);
-    spec->gauge.center_x_mm = center[0];
-    spec->gauge.center_y_mm = center[1];
-    a.Read("base_z_mm", &spec->gauge.base_z_mm);
-    a.Read("edge_margin_mm", &spec->gauge.edge_margin_mm);
-    a.Read("bin_mm", &spec->gauge.bin_mm);
-    if (a.ok()) a.FailFromValidate(spec->gauge.Validate());
-  }
-  INSITU_RETURN_IF_ERROR(r.Finish());
-  if (accuracy && !spec->has_artifact) {
-    return InvalidArgument(job.path + ": an accuracy job needs an artifact: section");
-  }
-  *machine = spec->machine.config;
-  if (machine->backend == "sim") {
-    if (!job.world.IsDefined()) {
-      return InvalidArgument(job.path + ": machine.backend is sim but the job names no world");
+    a.ReadEnum("kind", &spec->artifact, {"step_gauge", "insert"});
+    if (spec->artifact == "step_gauge") {
+      a.Read("heights_mm", &spec->gauge.heights_mm);
+      a.Read("step_width_mm", &spec->gauge.step_width_mm);
+      a.Read("length_mm", &spec->gauge.length_mm);
+      double center[2] = {0, 0};
+      a.ReadArray("center_mm", center, 2);
+      spec->gauge.center_x_mm = center[0];
+      spec->gauge.center_y_mm = center[1];
+      a.Read("base_z_mm", &spec->gauge.base_z_mm);
+      a.Read("edge_margin_mm", &spec->gauge.edge_margin_mm);
+      a.Read("bin_mm", &spec->gauge.bin_mm);
+      if (a.ok()) a.FailFromValidate(spec->gauge.Validate());
+    } else if (spec->artifact == "insert") {
+      InsertSpec& in = spec->insert;
+      a.Read("thickness_mm", &in.thickness_mm);
+      a.Read("edge_mm", &in.edge_mm);
+      a.Read("hole_diameter_mm", &in.hole_diameter_mm);
+      a.Read("tip_radius_mm", &in.tip_radius_mm);
+      a.Read("base_z_mm", &in.base_z_mm);
+      a.Read("gap_mm", &in.gap_mm);
+      a.Read("inlier_mm", &in.inlier_mm);
+      a.Read("corner_exclusion_mm", &in.corner_exclusion_mm);
+      a.ReadArray("rake_fit_mm", in.rake_fit_mm.data(), 2);
+      if (a.ok()) a.FailFromValidate(in.Validate());
     }
-    ConfigReader w(job.world);
-    ReadWorld(w, &machine->world);
-    INSITU_RETURN_IF_ERROR(w.Finish());
   }
-  return Status::Ok();
 }
 
 std::string FormatMm(double v) {
@@ -153,43 +98,59 @@ void AddStepMeans(const StepGaugeResult& e, const std::string& label, int rgb, P
   plot->series.push_back(std::move(series));
 }
 
+// Seed 000 Table 1: the in-situ values against the nominal (vernier) ones.
+void AddInsertMetrics(const InsertResult& r, const InsertSpec& s, Report* report) {
+  auto& m = report->metrics;
+  double worst = 0.0;
+  auto add = [&](const std::string& name, double value, double nominal) {
+    m["insert_" + name + "_mm"] = value;
+    m["insert_" + name + "_error_mm"] = value - nominal;
+    worst = std::max(worst, std::abs(value - nominal));
+  };
+  add("thickness", r.thickness_mm, s.thickness_mm);
+  for (int i = 0; i < 3; ++i) {
+    add("edge_" + std::to_string(i + 1), r.edge_mm[i], s.edge_mm);
+    m["insert_edge_" + std::to_string(i + 1) + "_raw_mm"] = r.edge_raw_mm[i];
+  }
+  add("hole_diameter", r.hole_diameter_mm, s.hole_diameter_mm);
+  m["insert_error_max_abs_mm"] = worst;
+  m["insert_plate_z_mm"] = r.plate_z_mm;
+  m["insert_edge_fit_rms_mm"] = r.edge_fit_rms_mm;
+  m["insert_edge_points_min"] =
+      *std::min_element(r.edge_points.begin(), r.edge_points.end());
+  m["insert_hole_points"] = r.hole_points;
+  // Where the insert lies (for placing a pattern on it): the hole's centre.
+  m["insert_hole_center_x_mm"] = r.hole_center_mm.x();
+  m["insert_hole_center_y_mm"] = r.hole_center_mm.y();
+  m["insert_hole_fit_rms_mm"] = r.hole_fit_rms_mm;
+}
+
 Result<Report> RunScanJob(const LoadedJob& job, const RunOptions& options) {
   const auto wall_start = std::chrono::steady_clock::now();
   ScanJobSpec spec;
   hw::MachineConfig machine_config;
-  INSITU_RETURN_IF_ERROR(ReadScanJob(job, &spec, &machine_config));
-  auto calibration = calib::LoadCalibration(spec.machine.calibration_path);
-  if (!calibration.ok()) return calibration.status().Prefixed(job.path + ": machine.calibration");
-  INSITU_ASSIGN_OR_RETURN(hw::Machine machine, hw::CreateMachine(machine_config));
-  const hw::CameraInfo info = machine.camera->info();
-  INSITU_RETURN_IF_ERROR(calib::CheckCameraMatches(calibration->camera, info.model, info.serial,
-                                                   info.sensor_width_px, info.sensor_height_px)
-                             .Prefixed(spec.machine.calibration_path));
-
-  Report report;
-  report.job = job.kind;
-  report.started = NowIso8601();
-  std::error_code ec;
-  std::filesystem::create_directories(options.out_dir, ec);
-  if (ec) return NotFound("cannot create output folder " + options.out_dir + ": " + ec.message());
+  INSITU_RETURN_IF_ERROR(ReadScanJob(job, &spec, &machine_config, [&](ConfigReader& r) {
+    ReadArtifact(r, &spec);
+  }));
+  if (job.kind == "accuracy" && spec.artifact != "step_gauge") {
+    return InvalidArgument(job.path + ": an accuracy job needs an artifact: of kind step_gauge");
+  }
+  INSITU_ASSIGN_OR_RETURN(ScanMachine up, BringUp(job, spec, machine_config));
+  hw::Machine& machine = up.machine;
+  const calib::CalibrationSet& calibration = up.calibration;
+  INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir));
 
   auto log = Logger("job");
   log->info("scan: {} lines x = {}..{} mm every {} mm, {} mm/s, exposure {} ms, calibration {}",
             spec.scan.line_count(), spec.scan.x_start_mm, spec.scan.x_end_mm,
             spec.scan.line_spacing_mm, spec.scan.speed_mm_per_s, spec.scan.exposure_ms,
-            calibration->produced_by);
+            calibration.produced_by);
   Progress progress("job", "scan lines", spec.scan.line_count());
   auto scanned = RunScan(
-      machine, spec.scan, spec.extraction, *calibration,
+      machine, spec.scan, spec.extraction, calibration,
       [&](int done, int) { progress.Update(done); }, options.cancel);
-  auto finish = [&](bool ok, const std::string& error) -> Result<Report> {
-    report.ok = ok;
-    report.error = error;
-    report.elapsed_s =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
-    INSITU_RETURN_IF_ERROR(WriteReport(report, options.out_dir));
-    if (!ok) return Status(StatusCode::kDeviceError, error);
-    return report;
+  auto finish = [&](bool ok, const std::string& error) {
+    return FinishReport(report, ok, error, wall_start, options.out_dir, StatusCode::kDeviceError);
   };
   if (!scanned.ok()) return finish(false, scanned.status().ToString());
   const ScanStats& st = scanned->stats;
@@ -224,7 +185,7 @@ Result<Report> RunScanJob(const LoadedJob& job, const RunOptions& options) {
                               " stripe columns saturated: lower camera.exposure_ms or gain");
   }
 
-  if (spec.has_artifact) {
+  if (spec.artifact == "step_gauge") {
     // The accuracy job compares both methods on the same frames (seed 000 Fig. 5).
     const bool both = job.kind == "accuracy";
     auto eval = EvaluateStepGauge(cloud, spec.gauge);
@@ -258,17 +219,41 @@ Result<Report> RunScanJob(const LoadedJob& job, const RunOptions& options) {
     report.artifacts[both ? "accuracy" : "height_error"] = name;
     if (both) report.artifacts["step_heights"] = "step_heights.png";
   }
+  if (spec.artifact == "insert") {
+    auto eval = EvaluateInsert(cloud, spec.insert);
+    if (!eval.ok()) return finish(false, eval.status().ToString());
+    AddInsertMetrics(*eval, spec.insert, &report);
+    const std::string name = "insert.png";
+    const Status drawn = SaveInsertPicture(
+        cloud, *eval, spec.insert, (std::filesystem::path(options.out_dir) / name).string());
+    if (!drawn.ok()) return finish(false, drawn.ToString());
+    report.artifacts["insert"] = name;
+    {
+      // The edge points behind the fits, for checking them elsewhere.
+      const std::string csv = (std::filesystem::path(options.out_dir) / "insert_edges.csv").string();
+      std::ofstream f(csv);
+      f << "kind,x_mm,y_mm\n";
+      for (const auto& p : eval->outline_points) f << "outline," << p.x() << "," << p.y() << "\n";
+      for (const auto& p : eval->hole_points_mm) f << "hole," << p.x() << "," << p.y() << "\n";
+      if (!f.good()) return finish(false, "cannot write " + csv);
+      report.artifacts["insert_edges"] = "insert_edges.csv";
+    }
+    log->info("insert: thickness {:.3f} mm, edges {:.3f} / {:.3f} / {:.3f} mm, hole {:.3f} mm",
+              eval->thickness_mm, eval->edge_mm[0], eval->edge_mm[1], eval->edge_mm[2],
+              eval->hole_diameter_mm);
+  }
   log->info("scan: {} points from {} lines", cloud.size(), st.lines);
   return finish(true, "");
 }
 
 }  // namespace
 
-std::vector<std::string> JobKinds() { return {"scan", "accuracy", "calibrate"}; }
+std::vector<std::string> JobKinds() { return {"scan", "accuracy", "calibrate", "mark"}; }
 
 Result<Report> RunJob(const LoadedJob& job, const RunOptions& options) {
   if (job.kind == "scan" || job.kind == "accuracy") return RunScanJob(job, options);
   if (job.kind == "calibrate") return RunCalibrateJob(job, options);
+  if (job.kind == "mark") return RunMarkJob(job, options);
   std::string kinds;
   for (const std::string& k : JobKinds()) kinds += (kinds.empty() ? "" : ", ") + k;
   return InvalidArgument(job.path + ": job: unknown kind '" + job.kind + "' (known: " + kinds + ")");

@@ -145,7 +145,7 @@ Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
       }
       Eigen::Vector3d point = galvo_from_camera * *p_cam;
       geometry::CloudPoint cp;
-      cp.intensity = stripe.peak[index[k]];
+      cp.intensity = static_cast<float>(stripe.peak[index[k]] - stripe.base[index[k]]);
       cp.line = i;
       cp.pixel_u = static_cast<float>(pixels[k].x());
       cp.pixel_v = static_cast<float>(pixels[k].y());

@@ -4,6 +4,9 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <vector>
+
+#include "job/line_ends.h"
 
 namespace insitu::job {
 
@@ -21,6 +24,29 @@ Status StepGaugeSpec::Validate() const {
   return Status::Ok();
 }
 
+namespace {
+
+struct Extent {
+  double y_min = std::numeric_limits<double>::infinity();
+  double y_max = -std::numeric_limits<double>::infinity();
+  int points = 0;
+};
+
+// Extent along y of one line's points on a step's top (sorted here).
+Extent TopExtent(std::vector<LinePoint>* top) {
+  SortAlongLine(top);
+  Extent e;
+  const int n = static_cast<int>(top->size());
+  e.points = n;
+  if (n < 2) return e;
+  const double spacing = MedianSpacing(*top, 0, n - 1);
+  e.y_min = HalfBrightnessEnd(*top, 0, +1, spacing);
+  e.y_max = HalfBrightnessEnd(*top, n - 1, -1, spacing);
+  return e;
+}
+
+}  // namespace
+
 Result<StepGaugeResult> EvaluateStepGauge(const geometry::Cloud& cloud, const StepGaugeSpec& s) {
   INSITU_RETURN_IF_ERROR(s.Validate());
   const int n = static_cast<int>(s.heights_mm.size());
@@ -34,12 +60,7 @@ Result<StepGaugeResult> EvaluateStepGauge(const geometry::Cloud& cloud, const St
   std::vector<std::vector<int>> bin_count(n, std::vector<int>(bins, 0));
   double sum_sq_all = 0;
   // Per scan line on a step: first and last y on the top surface (for the length).
-  struct Extent {
-    double y_min = std::numeric_limits<double>::infinity();
-    double y_max = -std::numeric_limits<double>::infinity();
-    int points = 0;
-  };
-  std::map<int, Extent> extents;
+  std::map<int, std::vector<LinePoint>> tops;  // per line: its points on a step's top
 
   for (const geometry::CloudPoint& p : cloud) {
     const double x = p.point_in_galvo.x(), y = p.point_in_galvo.y(), z = p.point_in_galvo.z();
@@ -50,10 +71,7 @@ Result<StepGaugeResult> EvaluateStepGauge(const geometry::Cloud& cloud, const St
     // Length: any point on this step's top, its x inside the step's margins.
     if (x > step_lo + s.edge_margin_mm && x < step_hi - s.edge_margin_mm &&
         z > s.base_z_mm + 0.5 * s.heights_mm[i]) {
-      Extent& e = extents[p.line];
-      e.y_min = std::min(e.y_min, y);
-      e.y_max = std::max(e.y_max, y);
-      ++e.points;
+      tops[p.line].push_back({x, y, z, p.intensity});
     }
     if (x <= step_lo + s.edge_margin_mm || x >= step_hi - s.edge_margin_mm) continue;
     if (y <= y_lo + s.edge_margin_mm || y >= y_hi - s.edge_margin_mm) continue;
@@ -96,9 +114,10 @@ Result<StepGaugeResult> EvaluateStepGauge(const geometry::Cloud& cloud, const St
   }
   // A line counts for the length only if it reached both ends of the top (within 2 mm).
   double sum = 0, sum_sq = 0;
-  for (const auto& [line, e] : extents) {
+  for (auto& [line, top] : tops) {
+    const Extent e = TopExtent(&top);
     if (e.y_min > y_lo + 2.0 || e.y_max < y_hi - 2.0 || e.points < 2) continue;
-    const double len = (e.y_max - e.y_min) * e.points / (e.points - 1.0);
+    const double len = e.y_max - e.y_min;
     sum += len;
     sum_sq += len * len;
     ++r.length_lines;

@@ -160,23 +160,124 @@ void SimWorld::PointerSamples(double t0, double t1, std::vector<BeamSample>* sam
   }
 }
 
-Status SimWorld::ExecuteMarkingList(const std::vector<ListMove>& moves, double jump_speed,
-                                    double mark_speed) {
-  if (!(jump_speed > 0) || !(mark_speed > 0)) return InvalidArgument("list speeds must be > 0");
-  const double tick = options_.scan_head.clock_us * 1e-6;
-  Eigen::Vector3d pos = Eigen::Vector3d::Zero();
+Status SimWorld::ExecuteMarkingList(const std::vector<ListMove>& moves, const MarkingParams& p) {
+  if (!(p.jump_speed_mm_per_s > 0) || !(p.mark_speed_mm_per_s > 0)) {
+    return InvalidArgument("list speeds must be > 0");
+  }
+  if (!(p.power_fraction >= 0 && p.power_fraction <= 1)) {
+    return InvalidArgument("laser power must be a fraction in [0, 1]");
+  }
+  if (!(p.pulse_frequency_khz > 0)) return InvalidArgument("pulse frequency must be > 0");
+  for (double d : {p.laser_on_delay_us, p.laser_off_delay_us, p.jump_delay_us, p.mark_delay_us}) {
+    if (!(d >= 0)) return InvalidArgument("list delays must be >= 0");
+  }
+  const auto& sh = options_.scan_head;
   for (const ListMove& m : moves) {
     MirrorAngles a;
-    if (!CommandToAngles(m.to_in_galvo, &a)) {
-      return OutOfRange("list point outside the scan field");
+    if (std::abs(m.to_in_galvo.x()) > sh.field_half_size_mm ||
+        std::abs(m.to_in_galvo.y()) > sh.field_half_size_mm ||
+        std::abs(m.to_in_galvo.z()) > sh.focus_range_mm || !CommandToAngles(m.to_in_galvo, &a)) {
+      return OutOfRange("list point (" + std::to_string(m.to_in_galvo.x()) + ", " +
+                        std::to_string(m.to_in_galvo.y()) + ", " +
+                        std::to_string(m.to_in_galvo.z()) + ") mm is outside the field or focus range");
     }
-    const double v = m.kind == ListMove::Kind::kMark ? mark_speed : jump_speed;
-    const double ticks = std::ceil((m.to_in_galvo - pos).norm() / (v * tick));
-    if (m.kind == ListMove::Kind::kMark) laser_on_ticks_ += static_cast<int64_t>(ticks);
-    now_s_ += ticks * tick;
-    pos = m.to_in_galvo;
-    rest_angles_ = a;
   }
+  const double tick = sh.clock_us * 1e-6;
+  const auto ticks_of = [&](double us) { return static_cast<int>(std::llround(us * 1e-6 / tick)); };
+
+  // 1. The command on the head's clock: position and laser state per tick.
+  struct Tick {
+    Eigen::Vector3d command;
+    bool laser = false;
+  };
+  std::vector<Tick> timeline;
+  Eigen::Vector3d at = last_command_;
+  int laser_off_at = -1;  // tick index at which a pending laser-off happens
+  for (size_t i = 0; i < moves.size(); ++i) {
+    const ListMove& m = moves[i];
+    const bool mark = m.kind == ListMove::Kind::kMark;
+    const bool starts_sequence = mark && (i == 0 || moves[i - 1].kind != ListMove::Kind::kMark);
+    const bool ends_sequence = mark && (i + 1 == moves.size() || moves[i + 1].kind != ListMove::Kind::kMark);
+    const double speed = mark ? p.mark_speed_mm_per_s : p.jump_speed_mm_per_s;
+    const int n = std::max(1, static_cast<int>(std::ceil((m.to_in_galvo - at).norm() / (speed * tick))));
+    const size_t first = timeline.size();
+    for (int k = 1; k <= n; ++k) {
+      timeline.push_back({at + (m.to_in_galvo - at) * (static_cast<double>(k) / n), mark});
+    }
+    if (starts_sequence) {
+      // The laser comes on laser_on_delay after the sequence's first mark starts.
+      const size_t on = std::min(timeline.size(), first + ticks_of(p.laser_on_delay_us));
+      for (size_t k = first; k < on; ++k) timeline[k].laser = false;
+    }
+    at = m.to_in_galvo;
+    if (ends_sequence) {
+      const int hold = ticks_of(p.mark_delay_us);
+      for (int k = 0; k < hold; ++k) timeline.push_back({at, false});
+      laser_off_at = static_cast<int>(timeline.size() - hold) + ticks_of(p.laser_off_delay_us);
+      // The laser stays on for laser_off_delay after the command reached the end.
+      for (int k = static_cast<int>(timeline.size() - hold);
+           k < laser_off_at && k < static_cast<int>(timeline.size()); ++k) {
+        timeline[k].laser = true;
+      }
+    }
+    if (!mark) {
+      for (int k = 0, hold = ticks_of(p.jump_delay_us); k < hold; ++k) timeline.push_back({at, false});
+      // A laser-off delay running into the jump keeps the laser on during it.
+      for (int k = static_cast<int>(first); k < laser_off_at && k < static_cast<int>(timeline.size()); ++k) {
+        timeline[k].laser = true;
+      }
+    }
+  }
+  // Let the mirrors settle with the laser off.
+  const double tau = sh.tracking_lag_ms * 1e-3;
+  for (int k = 0, settle = static_cast<int>(std::ceil(10.0 * tau / tick)); k < settle; ++k) {
+    timeline.push_back({at, laser_off_at > static_cast<int>(timeline.size())});
+  }
+
+  // 2. The mirrors follow with their lag; pulses fire at the pulse rate while the laser is on.
+  const BeamOptions& beam = sh.marking;
+  const double w0 = 0.5 * beam.waist_diameter_mm;
+  const double rayleigh = M_PI * w0 * w0 / (beam.m2 * beam.wavelength_nm * 1e-6);
+  const double pulse_energy_j = beam.power_mw * 1e-3 * p.power_fraction / (p.pulse_frequency_khz * 1e3);
+  const double pulse_period = 1.0 / (p.pulse_frequency_khz * 1e3);
+  const double alpha = tau > 0 ? 1.0 - std::exp(-tick / tau) : 1.0;
+  MirrorAngles actual = rest_angles_;
+  double t = 0.0, next_pulse = 0.0;
+  bool was_on = false;
+  for (const Tick& k : timeline) {
+    MirrorAngles cmd;
+    CommandToAngles(k.command, &cmd);
+    actual.x_rad += alpha * (cmd.x_rad - actual.x_rad);
+    actual.y_rad += alpha * (cmd.y_rad - actual.y_rad);
+    t += tick;
+    if (!k.laser) {
+      was_on = false;
+      continue;
+    }
+    ++laser_on_ticks_;
+    if (!was_on) next_pulse = t;  // the pulse train starts with the laser
+    was_on = true;
+    for (; next_pulse <= t; next_pulse += pulse_period) {
+      const ChiefRay ray = true_optics_->Trace(actual);
+      const Eigen::Vector3d start = ray.AtHeight(scene_->stage_z() + kTraceStartHeightMm);
+      Hit hit;
+      if (!scene_->Intersect(start, -ray.up, 5000.0, &hit)) continue;
+      MarkPulse pulse;
+      pulse.point_in_world = hit.point_in_world;
+      pulse.on_part = hit.on_part;
+      pulse.defocus_mm = (k.command.z() - hit.point_in_world.z()) / ray.up.z();
+      const double w_mm = w0 * std::sqrt(1.0 + std::pow(pulse.defocus_mm / rayleigh, 2));
+      // Peak fluence of a Gaussian pulse, J/cm^2: 2 E / (pi w^2), w in cm.
+      const double f0 = 2.0 * pulse_energy_j / (M_PI * std::pow(w_mm * 0.1, 2));
+      const double threshold = hit.on_part ? options_.part.ablation_threshold_j_per_cm2
+                                           : options_.stage.plate_ablation_threshold_j_per_cm2;
+      pulse.diameter_mm = f0 > threshold ? w_mm * std::sqrt(2.0 * std::log(f0 / threshold)) : 0.0;
+      pulses_.push_back(pulse);
+    }
+  }
+  now_s_ += t;
+  last_command_ = at;
+  rest_angles_ = actual;
   return Status::Ok();
 }
 

@@ -207,8 +207,28 @@ RefLine RefColumn(const std::vector<int>& g, const std::vector<int>& raw, const 
   out.width = re - rs + 1;
   bool saturated = false;
   for (int r = rs; r <= re; ++r) saturated = saturated || raw[r] >= saturation;
+  // Another stripe: a run above K outside rs..re (dips shorter than min_peak_separation_px
+  // bridged), at most max_width_px long, peaking at second_peak_ratio * gmax or more.
   bool other = false;
-  for (int r = 0; r < n; ++r) other = other || ((r < rs || r > re) && g[r] > k);
+  for (int r = 0; r < n;) {
+    if (g[r] <= k) {
+      ++r;
+      continue;
+    }
+    int start = r, last = r, peak = g[r];
+    for (int gap = 0; r < n && gap < o.min_peak_separation_px; ++r) {
+      if (g[r] > k) {
+        last = r;
+        peak = std::max(peak, g[r]);
+        gap = 0;
+      } else {
+        ++gap;
+      }
+    }
+    r = last + 1;
+    other = other || ((last < rs || start > re) && last - start + 1 <= o.max_width_px &&
+                      peak >= o.second_peak_ratio * gmax);
+  }
   if (saturated) {
     out.status = StripeStatus::kSaturated;
   } else if (out.width > o.max_width_px) {
@@ -406,6 +426,8 @@ TEST(StripeOptionsTest, ValidateNamesTheBadField) {
       {[](StripeOptions& o) { o.max_width_px = 0; }, "max_width_px"},
       {[](StripeOptions& o) { o.max_width_px = 256; }, "max_width_px"},
       {[](StripeOptions& o) { o.min_peak_separation_px = 0; }, "min_peak_separation_px"},
+      {[](StripeOptions& o) { o.second_peak_ratio = 1.2; }, "second_peak_ratio"},
+      {[](StripeOptions& o) { o.second_peak_ratio = NAN; }, "second_peak_ratio"},
       {[](StripeOptions& o) { o.saturation_level = -2; }, "saturation_level"},
       {[](StripeOptions& o) { o.direction = static_cast<StripeDirection>(7); }, "direction"},
   };
@@ -747,6 +769,33 @@ TEST(StripeExtractorTest, TwoStripesInAColumnAreTwoPeaks) {
   }
 }
 
+TEST(StripeExtractorTest, LitSurfaceIsNotASecondStripe) {
+  // A weak stripe (filtered peak ~51) on a dark surface (15), and in the same columns a part's
+  // face lit by ambient light (35, above K ~25 but under 0.8 gmax): a broad plateau, or a
+  // narrow patch of it (a corner).
+  TestImage img(60, 200, 8, 15);
+  img.AddRowStripe([](int) { return 150.0; }, 1.5, 45);
+  for (int u = 0; u < 60; ++u) {
+    for (int v = 20; v < 100; ++v) img.at(u, v) = u < 30 ? 35 : 15;  // the face, 80 rows
+    if (u >= 30) {
+      for (int v = 60; v < 66; ++v) img.at(u, v) = 35;  // its corner: 6 rows, stripe-wide
+    }
+  }
+  img.AddNoise(1.5, 23);
+  StripeResult r = ExtractOrFail(ColumnOptions(), img.View());
+  EXPECT_EQ(r.valid_count(), 60);
+  // The stripe's centre at 150, unaffected by the face.
+  for (int u = 0; u < 60; ++u) EXPECT_NEAR(r.center[u], 150.0, 0.3) << u;
+  EXPECT_EQ(ExpectMatchesReference(img, ColumnOptions()), 60);
+  // Counting every other run, the corner columns are ambiguous; the broad face never is.
+  StripeOptions strict = ColumnOptions();
+  strict.second_peak_ratio = 0.0;
+  r = ExtractOrFail(strict, img.View());
+  for (int u = 0; u < 30; ++u) EXPECT_EQ(r.status[u], StripeStatus::kValid) << u;
+  for (int u = 30; u < 60; ++u) EXPECT_EQ(r.status[u], StripeStatus::kTwoPeaks) << u;
+  EXPECT_EQ(ExpectMatchesReference(img, strict), 30);
+}
+
 TEST(StripeExtractorTest, ShortDipsInsideTheRunAreBridged) {
   // A wide flat-topped stripe with one dark row in its middle (a scratch on the part): with the
   // default separation (3) the two halves are one run; with separation 1 they are two peaks.
@@ -810,7 +859,12 @@ TEST(StripeExtractorTest, HotPixelsAreIgnoredByTheMedian) {
   raw.median_kernel = 1;
   const StripeResult c = ExtractOrFail(raw, hot.View());
   EXPECT_EQ(c.status[75], StripeStatus::kValid);
-  EXPECT_EQ(c.status[20], StripeStatus::kTwoPeaks);
+  // Column 20: the hot pixel (250) outshines the stripe (150 < 0.8 * 250), so it is taken for
+  // the stripe; counting every other run, the column is ambiguous.
+  EXPECT_EQ(c.status[20], StripeStatus::kValid);
+  EXPECT_NEAR(c.center[20], 12.0, 1e-6);
+  raw.second_peak_ratio = 0.0;
+  EXPECT_EQ(ExtractOrFail(raw, hot.View()).status[20], StripeStatus::kTwoPeaks);
 }
 
 TEST(StripeExtractorTest, DeadColumnIsFilledByTheMedian) {

@@ -39,8 +39,9 @@ struct StripeCurve {
 struct HeightLookupSummary {
   bool ok = false;
   std::string message;
-  double fit_rms_px = 0.0;   // residual of the curves through their centres
+  double fit_rms_px = 0.0;   // residual of the curves through their centres (outliers out)
   double fit_max_px = 0.0;
+  int outliers = 0;          // centres left out of their curve's fit (far off it)
 };
 
 class HeightLookup {

@@ -14,7 +14,7 @@ namespace insitu::geometry {
 
 struct CloudPoint {
   Eigen::Vector3f point_in_galvo;  // mm
-  float intensity = 0.0f;          // stripe peak, gray levels
+  float intensity = 0.0f;          // stripe peak above the local background, gray levels
   int32_t line = 0;                // scan line index
   float pixel_u = 0.0f;            // stripe centre in the frame
   float pixel_v = 0.0f;

@@ -2,8 +2,9 @@
 //
 // A job file is YAML with a `job:` kind and the sections that kind needs. `world:` (simulator
 // backend) names a world file (config/worlds/); relative paths resolve against the job file's
-// folder. `--set dotted.key=value` overrides any key of the job, and keys under `world.` go to
-// the world document, so `--set world.camera.k1=-0.08` works. Every error names the file, the
+// folder. `world_changes:` (a map shaped like the world file) changes the world for this job:
+// the part on the stage, where it lies. `--set dotted.key=value` overrides any key of the job,
+// and keys under `world.` go to the world document, so `--set world.camera.k1=-0.08` works. Every error names the file, the
 // line and the key (or the --set that gave the value).
 #pragma once
 
@@ -42,5 +43,14 @@ struct MachineSpec {
   std::string calibration_path;  // resolved
 };
 void ReadMachine(ConfigReader& root, const std::string& folder, MachineSpec* spec);
+
+// The keys every job file starts with: `job`, `description`, `world` and `world_changes`
+// (already applied by LoadJobFile) and the `machine:` section.
+void ReadJobHeader(ConfigReader& root, const LoadedJob& job, MachineSpec* machine);
+
+// The machine config for a job: the backend from `spec` and, for the simulator, the job's
+// world (world file, world_changes and --set applied), read strictly. Errors: a sim job
+// without a world; bad world keys.
+Status MachineConfigFor(const LoadedJob& job, const MachineSpec& spec, hw::MachineConfig* out);
 
 }  // namespace insitu::job

@@ -3,6 +3,7 @@
 // the job failed). Metric names carry their unit.
 #pragma once
 
+#include <chrono>
 #include <map>
 #include <string>
 #include <vector>
@@ -25,5 +26,16 @@ struct Report {
 std::string NowIso8601();
 // Writes DIR/report.json atomically.
 Status WriteReport(const Report& report, const std::string& dir);
+
+// Starts a job's report: creates `dir` (not_found naming it if it cannot be made), names the
+// job and stamps its start.
+Result<Report> StartReport(const std::string& job_kind, const std::string& dir);
+
+// Ends a job's report: sets ok, error and the elapsed time since `start`, writes it to `dir`.
+// Returns the report, or for a failed job `failure` with the error (the report is on disk
+// either way).
+Result<Report> FinishReport(Report& report, bool ok, const std::string& error,
+                            std::chrono::steady_clock::time_point start, const std::string& dir,
+                            StatusCode failure);
 
 }  // namespace insitu::job

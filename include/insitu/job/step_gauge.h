@@ -46,9 +46,8 @@ struct StepGaugeResult {
   // Fig. 5b, where single-point noise (speckle) averages out.
   double max_abs_binned_error_mm = 0.0;
   int length_lines = 0;          // scan lines that crossed a top over its whole length
-  // Mean over those lines of y_last - y_first on the top, plus one point spacing: each point
-  // stands for a column one spacing wide, so the top reaches half a spacing past the first
-  // and the last point.
+  // Mean over those lines of the distance between the top's two ends, each where the stripe
+  // on the top falls to half its brightness (see job/line_ends.h).
   double length_mm = 0.0;
   double length_std_mm = 0.0;
 };

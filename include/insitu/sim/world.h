@@ -30,6 +30,30 @@ struct ListMove {
   Eigen::Vector3d to_in_galvo = Eigen::Vector3d::Zero();
 };
 
+// How a list is run: speeds, the marking laser's power and pulse rate, and the RTC delays
+// (laser on after a mark sequence starts, off after it ends; the head holds still after jumps
+// and after a mark sequence for the mirrors to settle). Delays must be >= 0.
+struct MarkingParams {
+  double jump_speed_mm_per_s = 5000.0;
+  double mark_speed_mm_per_s = 1000.0;
+  double power_fraction = 0.5;
+  double pulse_frequency_khz = 30.0;
+  double laser_on_delay_us = 0.0;
+  double laser_off_delay_us = 0.0;
+  double jump_delay_us = 0.0;
+  double mark_delay_us = 0.0;
+};
+
+// One pulse of the marking laser where it hit (truth, for tests and the simulated imagers):
+// the crater's centre, its diameter (0 if the fluence stayed under the surface's ablation
+// threshold), and how far the surface was from the beam waist along the beam (+: beyond it).
+struct MarkPulse {
+  Eigen::Vector3d point_in_world = Eigen::Vector3d::Zero();
+  double diameter_mm = 0.0;
+  double defocus_mm = 0.0;
+  bool on_part = false;
+};
+
 // What the camera saw in the last frame, from the simulator's side: for tests only.
 struct FrameTruth {
   // Image position (pixels of the delivered frame) of every visible beam-centre sample.
@@ -58,9 +82,11 @@ class SimWorld {
   Status StartPointerLine(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
                           double speed_mm_per_s);
   void StopPointer();
-  // Runs a list with the marking laser (laser on during marks), blocking in virtual time.
-  Status ExecuteMarkingList(const std::vector<ListMove>& moves, double jump_speed_mm_per_s,
-                            double mark_speed_mm_per_s);
+  // Runs a list with the marking laser, blocking in virtual time: the command moves at the
+  // list's speeds on the head's clock, the mirrors follow with their tracking lag, and every
+  // laser pulse while the laser is on ablates a crater where the beam meets the surface (its
+  // diameter from the pulse fluence at the beam radius there: D^2 = 2 w^2 ln(F0 / F_th)).
+  Status ExecuteMarkingList(const std::vector<ListMove>& moves, const MarkingParams& params);
   // Where the head would put the chief ray for a command (after its correction table).
   bool CommandToAngles(const Eigen::Vector3d& point_in_galvo, MirrorAngles* angles) const;
 
@@ -92,8 +118,10 @@ class SimWorld {
   const CameraModel& true_camera() const;  // full-resolution true camera
   const Scene& scene() const;
   const ScanOptics& true_optics() const;
-  // Number of marking pulses that fired (0 unless a marking list ran).
+  // Clock ticks with the marking laser on (0 unless a marking list ran).
   int64_t laser_on_ticks() const { return laser_on_ticks_; }
+  // Every marking pulse so far.
+  const std::vector<MarkPulse>& mark_pulses() const { return pulses_; }
 
  private:
   struct PointerProgram {
@@ -122,6 +150,8 @@ class SimWorld {
   int binning_ = 1;
   uint64_t frame_counter_ = 0;
   int64_t laser_on_ticks_ = 0;
+  std::vector<MarkPulse> pulses_;
+  Eigen::Vector3d last_command_ = Eigen::Vector3d::Zero();
   FrameTruth truth_;
   // Ambient image (electrons per second per pixel), cached per stage height and binning.
   std::vector<float> ambient_e_per_s_;

@@ -95,6 +95,9 @@ struct PartOptions {
   std::array<double, 2> position_mm{0.0, 0.0};  // centre of the footprint on the stage
   double rotation_deg = 0.0;                    // about z
   double albedo = 0.45;                         // diffuse reflectance at 680 nm
+  // Single-pulse ablation threshold of the part's material for the marking laser (ns pulses,
+  // 1064 nm; steels 0.5..2 J/cm^2).
+  double ablation_threshold_j_per_cm2 = 1.0;
   // plane: a plate of the given thickness covering the footprint
   double plane_thickness_mm = 2.0;
   std::array<double, 2> plane_size_mm{120.0, 120.0};
@@ -108,7 +111,8 @@ struct PartOptions {
   double arc_height_mm = 11.5;
   double arc_edge_height_mm = 3.0;
   // insert: equilateral triangle with rounded corners, rake band and a central hole
-  double insert_edge_mm = 16.5;        // side of the sharp triangle
+  // Side of the sharp triangle: 16.14 mm (the seed's vernier L) + 2 (sqrt(3) - 1) 0.2 mm.
+  double insert_edge_mm = 16.433;
   double insert_corner_radius_mm = 0.2;
   double insert_thickness_mm = 4.68;
   double insert_hole_diameter_mm = 3.8;
@@ -124,6 +128,7 @@ struct StageOptions {
   double max_z_mm = 20.0;
   double speed_mm_per_s = 10.0;
   double plate_albedo = 0.12;     // black anodised aluminium
+  double plate_ablation_threshold_j_per_cm2 = 0.5;  // anodised layer, ns pulses at 1064 nm
   double plate_size_mm = 400.0;
 
   Status Validate() const;

@@ -32,7 +32,7 @@ enum class StripeStatus : uint8_t {
   kValid = 0,
   kNone,        // no stripe: filtered peak below min_peak or contrast below min_contrast
   kSaturated,   // the stripe reaches the sensor's full scale; its centroid is not trusted
-  kTwoPeaks,    // a second, separate run above K in the same scan line (reflection, step)
+  kTwoPeaks,    // a second, separate, stripe-like run above K in the scan line (reflection)
   kTooWide,     // the run above K is wider than max_width_px (blur, glare, not a stripe)
 };
 
@@ -51,8 +51,12 @@ struct StripeOptions {
   double min_contrast = 12.0;
   // A run above K wider than this is not a stripe.
   int max_width_px = 40;
-  // Runs above K separated by at least this many pixels below K count as two peaks.
+  // Runs above K separated by at least this many pixels below K count as two peaks...
   int min_peak_separation_px = 3;
+  // ... when the other run is at most max_width_px long (longer: a lit surface, not a stripe)
+  // and peaks at this fraction of gmax or more (weaker: ambient light on a bright part beside a
+  // weak stripe on a dark surface; the brighter run is the stripe). 0 counts every other run.
+  double second_peak_ratio = 0.8;
   // Raw pixel value counted as saturated; 0 means the image's full scale.
   int saturation_level = 0;
   // Weight of pixel i in the centroid: gray value g_i (seed eq. 7) or g_i - K.
@@ -68,6 +72,10 @@ struct StripeResult {
   std::vector<float> center;        // sub-pixel centre along the scan line; NaN if not valid
   std::vector<StripeStatus> status;
   std::vector<uint16_t> peak;       // filtered gmax of the scan line
+  // Valid scan lines: the filtered level 3 pixels beyond the run's ends (the lower side), the
+  // local background (ambient light on the surface) under the stripe; peak - base is the
+  // stripe's own signal. 0 elsewhere.
+  std::vector<uint16_t> base;
   std::vector<uint8_t> width_px;    // length of the run above K
 
   int valid_count() const;

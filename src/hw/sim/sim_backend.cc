@@ -42,7 +42,16 @@ class SimScanner : public Scanner {
     if (marks && !armed_) {
       return FailedPrecondition("the list marks but the scan head is not armed");
     }
-    return world_->ExecuteMarkingList(moves, list.jump_speed_mm_per_s, list.mark_speed_mm_per_s);
+    sim::MarkingParams params;
+    params.jump_speed_mm_per_s = list.jump_speed_mm_per_s;
+    params.mark_speed_mm_per_s = list.mark_speed_mm_per_s;
+    params.power_fraction = list.laser_power;
+    params.pulse_frequency_khz = list.laser_frequency_khz;
+    params.laser_on_delay_us = list.laser_on_delay_us;
+    params.laser_off_delay_us = list.laser_off_delay_us;
+    params.jump_delay_us = list.jump_delay_us;
+    params.mark_delay_us = list.mark_delay_us;
+    return world_->ExecuteMarkingList(moves, params);
   }
 
  private:

@@ -1,0 +1,46 @@
+// What every scanning job (scan, accuracy, mark) reads and brings up: the machine, the scan,
+// camera, extraction and reconstruction sections, and the calibration checked against the
+// camera. Internal to the job module.
+#pragma once
+
+#include <functional>
+#include <string>
+
+#include "insitu/calib/calibration.h"
+#include "insitu/core/config.h"
+#include "insitu/hw/machine.h"
+#include "insitu/job/insert.h"
+#include "insitu/job/job_file.h"
+#include "insitu/job/scan.h"
+#include "insitu/job/step_gauge.h"
+#include "insitu/vision/stripe.h"
+
+namespace insitu::job {
+
+struct ScanJobSpec {
+  MachineSpec machine;
+  ScanOptions scan;
+  vision::StripeOptions extraction;
+  int method = 1;
+  std::string artifact;  // "", step_gauge or insert
+  StepGaugeSpec gauge;
+  InsertSpec insert;
+  bool save_frames = false;
+};
+
+// Reads the common sections strictly; `extra` reads the job's own sections from the same
+// root reader before it is finished (unknown keys are refused). Fills `machine` with the
+// backend and, for the simulator, the world (with world_changes and --set applied).
+Status ReadScanJob(const LoadedJob& job, ScanJobSpec* spec, hw::MachineConfig* machine,
+                   const std::function<void(ConfigReader&)>& extra = {});
+
+struct ScanMachine {
+  hw::Machine machine;
+  calib::CalibrationSet calibration;
+};
+
+// Loads the calibration, creates the machine, refuses a calibration for another camera.
+Result<ScanMachine> BringUp(const LoadedJob& job, const ScanJobSpec& spec,
+                            const hw::MachineConfig& config);
+
+}  // namespace insitu::job

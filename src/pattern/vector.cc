@@ -1,0 +1,166 @@
+#include "insitu/pattern/vector.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <utility>
+#include <cstdlib>
+#include <sstream>
+
+#include "pattern/flatten.h"
+#include "pattern/hatch_order.h"
+
+namespace insitu::pattern {
+
+namespace {
+
+constexpr double kHpglUnitsPerMm = 40.0;
+
+}  // namespace
+
+Result<VectorPattern> ParseHpgl(const std::string& text, const std::string& origin) {
+  VectorPattern out;
+  Eigen::Vector2d pen = Eigen::Vector2d::Zero();
+  bool down = false, relative = false;
+  Polyline current;
+  auto flush = [&]() {
+    if (current.points.size() >= 2) {
+      if ((current.points.front() - current.points.back()).norm() < 1e-9 &&
+          current.points.size() >= 4) {
+        current.points.pop_back();
+        current.closed = true;
+      }
+      out.paths.push_back(current);
+    }
+    current = Polyline{};
+  };
+  size_t i = 0;
+  const size_t n = text.size();
+  while (i < n) {
+    const unsigned char c = text[i];
+    if (std::isspace(c) || c == ';' || c == ',') {
+      ++i;
+      continue;
+    }
+    if (!std::isalpha(c) || i + 1 >= n || !std::isalpha(static_cast<unsigned char>(text[i + 1]))) {
+      return ParseError(origin + ": byte " + std::to_string(i) + ": expected a two-letter "
+                        "HPGL command, found '" + text.substr(i, 8) + "'");
+    }
+    const std::string cmd{static_cast<char>(std::toupper(c)),
+                          static_cast<char>(std::toupper(static_cast<unsigned char>(text[i + 1])))};
+    const size_t at = i;
+    i += 2;
+    // Parameters: up to the next letter or ';'.
+    size_t end = i;
+    while (end < n && text[end] != ';' && !std::isalpha(static_cast<unsigned char>(text[end]))) ++end;
+    const std::string params = text.substr(i, end - i);
+    i = end;
+    if (cmd != "PU" && cmd != "PD" && cmd != "PA" && cmd != "PR" && cmd != "IN") {
+      ++out.ignored_commands;
+      continue;
+    }
+    std::vector<double> values;
+    {
+      std::string p = params;
+      std::replace(p.begin(), p.end(), ',', ' ');
+      std::istringstream is(p);
+      std::string token;
+      while (is >> token) {
+        char* stop = nullptr;
+        const double v = std::strtod(token.c_str(), &stop);
+        if (stop == token.c_str() || *stop != '\0' || !std::isfinite(v)) {
+          return ParseError(origin + ": byte " + std::to_string(at) + ": " + cmd +
+                            ": '" + token + "' is not a number");
+        }
+        values.push_back(v);
+      }
+    }
+    if (values.size() % 2 != 0) {
+      return ParseError(origin + ": byte " + std::to_string(at) + ": " + cmd + " has " +
+                        std::to_string(values.size()) + " coordinates, expected pairs");
+    }
+    if (cmd == "IN") {
+      flush();
+      pen.setZero();
+      down = relative = false;
+      continue;
+    }
+    if (cmd == "PA") relative = false;
+    if (cmd == "PR") relative = true;
+    if (cmd == "PU") {
+      flush();
+      down = false;
+    }
+    if (cmd == "PD" && !down) {
+      down = true;
+      current.points.push_back(pen);
+    }
+    for (size_t k = 0; k < values.size(); k += 2) {
+      const Eigen::Vector2d v(values[k] / kHpglUnitsPerMm, values[k + 1] / kHpglUnitsPerMm);
+      pen = relative ? Eigen::Vector2d(pen + v) : v;
+      if (down) current.points.push_back(pen);
+    }
+  }
+  flush();
+  if (out.paths.empty()) return InvalidArgument(origin + ": the plot draws nothing (no PD)");
+  return out;
+}
+
+Result<VectorPattern> LoadHpgl(const std::string& path) {
+  INSITU_ASSIGN_OR_RETURN(const std::string text, ReadPatternFile(path, "plot"));
+  return ParseHpgl(text, path);
+}
+
+std::vector<Segment2> Outline(const VectorPattern& pattern) {
+  std::vector<Segment2> out;
+  for (const Polyline& p : pattern.paths) {
+    for (size_t k = 1; k < p.points.size(); ++k) out.push_back({p.points[k - 1], p.points[k]});
+    if (p.closed && p.points.size() >= 3) out.push_back({p.points.back(), p.points.front()});
+  }
+  return out;
+}
+
+Result<std::vector<Segment2>> HatchPolygons(const VectorPattern& pattern, double spacing_mm,
+                                            double angle_deg) {
+  if (!(spacing_mm > 0)) return InvalidArgument("hatch spacing must be > 0");
+  // Work in the hatch frame: lines along x' at y' = k * spacing.
+  const double a = angle_deg * M_PI / 180.0;
+  const Eigen::Vector2d dir(std::cos(a), std::sin(a)), across(-std::sin(a), std::cos(a));
+  std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> edges;  // (x', y') endpoints
+  double lo = 1e300, hi = -1e300;
+  for (const Polyline& p : pattern.paths) {
+    if (!p.closed || p.points.size() < 3) continue;
+    for (size_t k = 0; k < p.points.size(); ++k) {
+      const Eigen::Vector2d& u = p.points[k];
+      const Eigen::Vector2d& v = p.points[(k + 1) % p.points.size()];
+      const Eigen::Vector2d uu(u.dot(dir), u.dot(across)), vv(v.dot(dir), v.dot(across));
+      edges.emplace_back(uu, vv);
+      lo = std::min({lo, uu.y(), vv.y()});
+      hi = std::max({hi, uu.y(), vv.y()});
+    }
+  }
+  if (edges.empty()) return InvalidArgument("no closed path to hatch");
+  std::vector<Segment2> out;
+  bool forward = true;
+  for (int k = static_cast<int>(std::ceil(lo / spacing_mm));
+       k <= static_cast<int>(std::floor(hi / spacing_mm)); ++k) {
+    const double y = k * spacing_mm;
+    std::vector<double> xs;
+    for (const auto& [u, v] : edges) {
+      // Half-open rule on y so a vertex shared by two edges counts once.
+      if ((u.y() <= y && v.y() > y) || (v.y() <= y && u.y() > y)) {
+        xs.push_back(u.x() + (y - u.y()) / (v.y() - u.y()) * (v.x() - u.x()));
+      }
+    }
+    std::sort(xs.begin(), xs.end());
+    std::vector<Segment2> line;
+    for (size_t m = 0; m + 1 < xs.size(); m += 2) {
+      if (xs[m + 1] - xs[m] < 1e-9) continue;
+      line.push_back({xs[m] * dir + y * across, xs[m + 1] * dir + y * across});
+    }
+    AppendHatchLine(std::move(line), &forward, &out);
+  }
+  return out;
+}
+
+}  // namespace insitu::pattern

@@ -1,0 +1,41 @@
+// Running the shipped job files from the integration tests, as an operator would with
+// `insitu run JOB --set ...`.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "insitu/job/job_file.h"
+#include "insitu/job/runner.h"
+
+namespace insitu::testing {
+
+inline std::string JobFile(const std::string& name) {
+  return std::string(INSITU_SOURCE_DIR) + "/config/jobs/" + name;
+}
+
+// Loads config/jobs/<name> with the overrides and runs it into `out_dir`.
+inline Result<job::Report> RunShippedJob(const std::string& name,
+                                         const std::vector<std::string>& sets,
+                                         const std::string& out_dir) {
+  auto loaded = job::LoadJobFile(JobFile(name), sets);
+  if (!loaded.ok()) return loaded.status();
+  job::RunOptions options;
+  options.out_dir = out_dir;
+  return job::RunJob(*loaded, options);
+}
+
+// The calibrate job on a coarser height grid than the shipped one (5 mm in z, line offsets
+// within +-20 mm), writing `calibration`: it keeps the tests short, and the lookup's cubic
+// interpolation holds its own error far below the speckle noise for parts within that volume.
+inline Result<job::Report> QuickCalibrate(const std::string& calibration,
+                                          const std::string& out_dir,
+                                          std::vector<std::string> sets = {}) {
+  for (const char* s : {"height.z_step_mm=5", "height.x_start_mm=-20", "height.x_end_mm=20"}) {
+    sets.emplace_back(s);
+  }
+  sets.push_back("output.calibration=" + calibration);
+  return RunShippedJob("calibrate.yaml", sets, out_dir);
+}
+
+}  // namespace insitu::testing

@@ -1,0 +1,92 @@
+// Raster patterns: image to mask, hatch lines at a spacing and angle, placement on the part.
+#include "insitu/pattern/raster.h"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+namespace insitu::pattern {
+namespace {
+
+namespace fs = std::filesystem;
+
+Mask Full(int w, int h) {
+  Mask m;
+  m.width = w;
+  m.height = h;
+  m.on.assign(static_cast<size_t>(w) * h, 1);
+  return m;
+}
+
+TEST(Raster, ImageToMaskAndBadImages) {
+  const fs::path dir = fs::temp_directory_path() / "insitu_raster_test";
+  fs::create_directories(dir);
+  cv::Mat img(60, 100, CV_8UC1, cv::Scalar(255));
+  img(cv::Rect(10, 5, 40, 20)).setTo(0);
+  ASSERT_TRUE(cv::imwrite((dir / "rect.png").string(), img));
+  auto m = LoadRasterMask((dir / "rect.png").string());
+  ASSERT_TRUE(m.ok()) << m.status().ToString();
+  EXPECT_EQ(std::count(m->on.begin(), m->on.end(), 1), 800);
+  EXPECT_TRUE(m->at(10, 5));
+  EXPECT_FALSE(m->at(9, 5));
+  auto inv = LoadRasterMask((dir / "rect.png").string(), 128, true);
+  ASSERT_TRUE(inv.ok());
+  EXPECT_EQ(std::count(inv->on.begin(), inv->on.end(), 1), 6000 - 800);
+
+  EXPECT_EQ(LoadRasterMask((dir / "missing.png").string()).status().code(), StatusCode::kNotFound);
+  std::ofstream(dir / "text.png") << "not an image";
+  EXPECT_EQ(LoadRasterMask((dir / "text.png").string()).status().code(),
+            StatusCode::kInvalidArgument);
+  cv::Mat white(10, 10, CV_8UC1, cv::Scalar(255));
+  ASSERT_TRUE(cv::imwrite((dir / "white.png").string(), white));
+  const auto none = LoadRasterMask((dir / "white.png").string());
+  ASSERT_FALSE(none.ok());
+  EXPECT_NE(none.status().message().find("no pixel to mark"), std::string::npos);
+}
+
+// A 1 mm square (100 px of 10 um) hatched every 40 um: the lines through |k * 0.04| < 0.5 mm,
+// i.e. k = -12..12, each 1 mm long to within the quarter-pixel sampling (ends within 1/8 px
+// = 1.25 um).
+TEST(Raster, HatchLinesFillTheSquareAtTheSpacing) {
+  const Mask m = Full(100, 100);
+  for (double angle : {0.0, 90.0}) {
+    auto lines = HatchMask(m, 0.01, 0.04, angle);
+    ASSERT_TRUE(lines.ok());
+    ASSERT_EQ(lines->size(), 25u) << angle;
+    for (const Segment2& s : *lines) EXPECT_NEAR((s.b - s.a).norm(), 1.0, 0.0026) << angle;
+    // Neighbouring lines 40 um apart, running in opposite directions.
+    const Segment2& l0 = (*lines)[0];
+    const Segment2& l1 = (*lines)[1];
+    const Eigen::Vector2d d = (l0.b - l0.a).normalized();
+    const Eigen::Vector2d n(-d.y(), d.x());
+    EXPECT_NEAR(std::abs(n.dot(l1.a - l0.a)), 0.04, 1e-9);
+    EXPECT_LT((l1.b - l1.a).dot(l0.b - l0.a), 0.0);
+  }
+  // At 45 degrees the hatch length is still area / spacing (25 mm), up to the ends.
+  auto diag = HatchMask(m, 0.01, 0.04, 45.0);
+  ASSERT_TRUE(diag.ok());
+  double total = 0;
+  for (const Segment2& s : *diag) total += (s.b - s.a).norm();
+  EXPECT_NEAR(total, 25.0, 0.1);
+  EXPECT_FALSE(HatchMask(m, 0.01, 0.0, 0.0).ok());
+  EXPECT_FALSE(HatchMask(m, -1.0, 0.04, 0.0).ok());
+}
+
+TEST(Raster, PlacementScalesRotatesThenMoves) {
+  Placement p;
+  p.scale = 2.0;
+  p.rotation_deg = 90.0;
+  p.offset_mm = {5.0, 0.0};
+  const Eigen::Vector2d q = p.Apply({1.0, 0.0});
+  EXPECT_NEAR(q.x(), 5.0, 1e-12);
+  EXPECT_NEAR(q.y(), 2.0, 1e-12);
+  const auto placed = Place({{{0, 0}, {1, 0}}}, p);
+  ASSERT_EQ(placed.size(), 1u);
+  EXPECT_NEAR((placed[0].b - placed[0].a).norm(), 2.0, 1e-12);
+}
+
+}  // namespace
+}  // namespace insitu::pattern
