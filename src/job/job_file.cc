@@ -98,6 +98,24 @@ void ReadWorld(ConfigReader& r, sim::WorldOptions* w) {
   sh.Read("clock_us", &w->scan_head.clock_us);
   ReadBeam(sh.Section("pointer"), &w->scan_head.pointer);
   ReadBeam(sh.Section("marking"), &w->scan_head.marking);
+  {
+    ConfigReader& cx = sh.Section("coaxial");
+    sim::CoaxialCameraOptions& o = w->scan_head.coaxial;
+    cx.Read("present", &o.present);
+    cx.Read("model", &o.model);
+    cx.Read("serial", &o.serial);
+    cx.Read("width_px", &o.width_px);
+    cx.Read("height_px", &o.height_px);
+    cx.Read("pixel_on_part_um", &o.pixel_on_part_um);
+    cx.Read("rotation_deg", &o.rotation_deg);
+    cx.Read("numerical_aperture", &o.numerical_aperture);
+    cx.Read("psf_sigma_um", &o.psf_sigma_um);
+    cx.Read("focus_offset_mm", &o.focus_offset_mm);
+    cx.Read("illumination_e_per_ms", &o.illumination_e_per_ms);
+    cx.Read("full_well_e", &o.full_well_e);
+    cx.Read("read_noise_e", &o.read_noise_e);
+    cx.Read("exposure_ms", &o.exposure_ms);
+  }
   if (sh.ok()) sh.FailFromValidate(w->scan_head.Validate());
 
   ConfigReader& c = r.Section("camera");
@@ -143,6 +161,9 @@ void ReadWorld(ConfigReader& r, sim::WorldOptions* w) {
   p.Read("rotation_deg", &po.rotation_deg);
   p.Read("albedo", &po.albedo);
   p.Read("ablation_threshold_j_per_cm2", &po.ablation_threshold_j_per_cm2);
+  p.Read("ablation_depth_um", &po.ablation_depth_um);
+  p.Read("marked_reflectance", &po.marked_reflectance);
+  p.Read("darkening_depth_um", &po.darkening_depth_um);
   p.Read("plane_thickness_mm", &po.plane_thickness_mm);
   p.ReadArray("plane_size_mm", po.plane_size_mm.data(), 2);
   p.Read("gauge_length_mm", &po.gauge_length_mm);

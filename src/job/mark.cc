@@ -14,6 +14,7 @@
 #include "insitu/pattern/mark_plan.h"
 #include "insitu/pattern/raster.h"
 #include "insitu/pattern/vector.h"
+#include "job/mark_verify.h"
 #include "job/scan_job.h"
 
 namespace insitu::job {
@@ -29,19 +30,29 @@ struct PatternSpec {
   std::string qr_level = "M";
 };
 
-struct MarkJobSpec {
+// One pattern on the part: what, where, how it is filled.
+struct ItemSpec {
   PatternSpec pattern;
   pattern::Placement placement;
   double hatch_spacing_mm = 0.04;
   std::vector<double> hatch_angles_deg{0.0};
   bool outline = true;  // vector patterns: mark the paths too
+  // Which point of the pattern the placement's offset puts on the part: the file's origin
+  // (vector files) or the centre of its bounding box. Codes and rasters are always centred.
+  std::string anchor = "origin";
+};
+
+struct MarkJobSpec {
+  std::vector<ItemSpec> items;
   geometry::SurfaceOptions surface;
   pattern::MarkSettings laser;
   pattern::HeadFormat head;
   bool head_field_set = false, head_focus_set = false;  // else taken from the scan head
+  VerifyOptions verify;
 };
 
-void ReadMarkSections(ConfigReader& r, const std::string& folder, MarkJobSpec* s) {
+// pattern, placement and hatch of one item, from `r` (the job's root or an element of items).
+void ReadItem(ConfigReader& r, const std::string& folder, ItemSpec* s) {
   ConfigReader& p = r.Section("pattern");
   p.Require("kind");
   p.ReadEnum("kind", &s->pattern.kind, {"raster", "qr", "datamatrix", "hpgl", "svg", "dxf"});
@@ -65,12 +76,43 @@ void ReadMarkSections(ConfigReader& r, const std::string& folder, MarkJobSpec* s
   pl.Read("scale", &s->placement.scale);
   pl.Read("rotation_deg", &s->placement.rotation_deg);
   pl.ReadArray("offset_mm", s->placement.offset_mm.data(), 2);
+  pl.ReadEnum("anchor", &s->anchor, {"origin", "centre"});
   if (pl.ok() && !(s->placement.scale > 0)) pl.Fail("scale", "must be > 0");
   ConfigReader& h = r.Section("hatch");
   h.Read("spacing_mm", &s->hatch_spacing_mm);
   h.Read("angles_deg", &s->hatch_angles_deg);
   h.Read("outline", &s->outline);
   if (h.ok() && !(s->hatch_spacing_mm > 0)) h.Fail("spacing_mm", "must be > 0");
+}
+
+void ReadMarkSections(ConfigReader& r, const std::string& folder, MarkJobSpec* s) {
+  if (r.Has("items")) {
+    // Several patterns marked from one scan: a list of {pattern, placement, hatch}.
+    r.Skip("items");
+    const ConfigNode items = r.node().Child("items");
+    if (!items.IsSequence() || items.size() == 0) {
+      r.Fail("items", "must be a non-empty list of {pattern, placement, hatch}");
+      return;
+    }
+    for (size_t i = 0; i < items.size(); ++i) {
+      if (!items.At(i).IsMap()) {
+        r.Fail("items", "element " + std::to_string(i) + " is not a map");
+        return;
+      }
+      ConfigReader ir(items.At(i));
+      ItemSpec item;
+      ReadItem(ir, folder, &item);
+      const Status st = ir.Finish();
+      if (!st.ok()) {
+        r.Fail("items", st.message());
+        return;
+      }
+      s->items.push_back(item);
+    }
+  } else {
+    s->items.emplace_back();
+    ReadItem(r, folder, &s->items.back());
+  }
   ConfigReader& su = r.Section("surface");
   su.Read("radius_mm", &s->surface.radius_mm);
   su.Read("min_points", &s->surface.min_points);
@@ -99,10 +141,22 @@ void ReadMarkSections(ConfigReader& r, const std::string& folder, MarkJobSpec* s
   hd.Read("field_half_size_mm", &s->head.field_half_size_mm);
   hd.Read("focus_half_range_mm", &s->head.focus_half_range_mm);
   if (hd.ok()) hd.FailFromValidate(s->head.Validate());
+  ConfigReader& v = r.Section("verify");
+  VerifyOptions& vo = s->verify;
+  v.Read("enabled", &vo.enabled);
+  v.Read("coaxial_pixel_um", &vo.coaxial_pixel_um);
+  v.Read("coaxial_rotation_deg", &vo.coaxial_rotation_deg);
+  v.Read("coaxial_exposure_ms", &vo.coaxial_exposure_ms);
+  v.Read("spacing_spots", &vo.spacing_spots);
+  v.Read("focus_points", &vo.focus_points);
+  v.Read("focus_sweep_mm", &vo.focus_sweep_mm);
+  v.Read("focus_step_mm", &vo.focus_step_mm);
+  v.Read("side_target_level", &vo.side_target_level);
+  if (v.ok()) v.FailFromValidate(vo.Validate());
 }
 
 // The pattern's segments in pattern mm (before placement).
-Result<std::vector<pattern::Segment2>> PatternSegments(const MarkJobSpec& s) {
+Result<std::vector<pattern::Segment2>> PatternSegments(const ItemSpec& s) {
   const PatternSpec& p = s.pattern;
   std::vector<pattern::Segment2> out;
   // The spacing is asked for on the part: hatch in pattern units, before the placement scales.
@@ -189,10 +243,27 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
   INSITU_RETURN_IF_ERROR(ReadScanJob(job, &spec, &machine_config, [&](ConfigReader& r) {
     ReadMarkSections(r, job.folder, &mark);
   }));
-  // The pattern is read before the machine moves: a bad pattern file fails now.
-  auto segments = PatternSegments(mark);
-  if (!segments.ok()) return segments.status().Prefixed(job.path + ": pattern");
-  if (segments->empty()) return InvalidArgument(job.path + ": pattern: nothing to mark");
+  // The patterns are read before the machine moves: a bad pattern file fails now.
+  std::vector<std::vector<pattern::Segment2>> placed_items;
+  std::vector<pattern::Segment2> placed;
+  for (size_t i = 0; i < mark.items.size(); ++i) {
+    const std::string where =
+        mark.items.size() > 1 ? ": items[" + std::to_string(i) + "].pattern" : ": pattern";
+    auto segments = PatternSegments(mark.items[i]);
+    if (!segments.ok()) return segments.status().Prefixed(job.path + where);
+    if (segments->empty()) return InvalidArgument(job.path + where + ": nothing to mark");
+    if (mark.items[i].anchor == "centre") {
+      Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e300), hi = -lo;
+      for (const auto& sg : *segments) {
+        lo = lo.cwiseMin(sg.a.cwiseMin(sg.b));
+        hi = hi.cwiseMax(sg.a.cwiseMax(sg.b));
+      }
+      const Eigen::Vector2d mid = 0.5 * (lo + hi);
+      for (auto& sg : *segments) sg.a -= mid, sg.b -= mid;
+    }
+    placed_items.push_back(pattern::Place(*segments, mark.items[i].placement));
+    placed.insert(placed.end(), placed_items.back().begin(), placed_items.back().end());
+  }
   INSITU_ASSIGN_OR_RETURN(ScanMachine up, BringUp(job, spec, machine_config));
   {
     // The list's limits are the head's own unless the job narrows them.
@@ -238,7 +309,6 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
   }
   auto surface = geometry::SurfaceModel::Build(scanned->cloud, mark.surface);
   if (!surface.ok()) return finish(false, surface.status().ToString());
-  const std::vector<pattern::Segment2> placed = pattern::Place(*segments, mark.placement);
   pattern::MarkPlanReport plan;
   auto list = pattern::PlanMarking(placed, *surface, mark.laser, &plan);
   if (!list.ok()) return finish(false, list.status().ToString());
@@ -271,8 +341,15 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
   report.artifacts["galvo_list"] = "galvo_list.txt";
   report.metrics["list_commands"] = static_cast<double>(emitted->size());
 
-  // 4. Mark: armed only for the list.
+  // 4. Mark: armed only for the list. The side camera looks first, for the comparison after.
   if (options.cancel != nullptr && options.cancel->load()) return finish(false, "cancelled");
+  Frame before;
+  double side_exposure_us = 0.0;
+  if (mark.verify.enabled) {
+    auto f = GrabSideView(up.machine, mark.verify, &side_exposure_us);
+    if (!f.ok()) return finish(false, "side camera before marking: " + f.status().ToString());
+    before = std::move(*f);
+  }
   {
     const Status armed = up.machine.scanner->Arm();
     if (!armed.ok()) return finish(false, "arm: " + armed.ToString());
@@ -283,6 +360,28 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
     if (!ran.ok()) return finish(false, "marking: " + ran.ToString());
   }
   log->info("mark: done");
+
+  // 5. Look at what was marked.
+  if (mark.verify.enabled) {
+    auto after = GrabSideView(up.machine, mark.verify, &side_exposure_us);
+    if (!after.ok()) return finish(false, "side camera after marking: " + after.status().ToString());
+    MarkDesign design;
+    for (size_t i = 0; i < mark.items.size(); ++i) {
+      const ItemSpec& it = mark.items[i];
+      ItemDesign d;
+      d.placed = placed_items[i];
+      d.spacing_mm = it.hatch_angles_deg.empty() ? 0.0 : it.hatch_spacing_mm;
+      d.hatch_angle_deg =
+          it.hatch_angles_deg.empty() ? 0.0 : it.hatch_angles_deg.front() + it.placement.rotation_deg;
+      design.items.push_back(std::move(d));
+    }
+    for (const pattern::ListCommand& c : *list) {
+      if (c.op == pattern::ListOp::kMarkAbs) design.mark_points.push_back(c.p);
+    }
+    const Status verified = VerifyMarks(up.machine, up.calibration, *surface, design, mark.verify,
+                                        before, *after, options.out_dir, &report);
+    if (!verified.ok()) return finish(false, "verification: " + verified.ToString());
+  }
   return finish(true, "");
 }
 

@@ -7,6 +7,7 @@
 #include <Eigen/Dense>
 
 #include "insitu/core/log.h"
+#include "sim/mark_map.h"
 #include "sim/noise.h"
 #include "sim/parallel.h"
 
@@ -42,6 +43,7 @@ SimWorld::SimWorld(const WorldOptions& options)
       exposure_us_(options.camera.exposure_ms * 1e3),
       gain_db_(options.camera.gain_db) {
   camera_binned_ = std::make_unique<CameraModel>(options.camera);
+  marks_ = std::make_unique<MarkMap>();
   scene_->SetBoard(options.board, -1);
 }
 
@@ -272,6 +274,10 @@ Status SimWorld::ExecuteMarkingList(const std::vector<ListMove>& moves, const Ma
       const double threshold = hit.on_part ? options_.part.ablation_threshold_j_per_cm2
                                            : options_.stage.plate_ablation_threshold_j_per_cm2;
       pulse.diameter_mm = f0 > threshold ? w_mm * std::sqrt(2.0 * std::log(f0 / threshold)) : 0.0;
+      pulse.beam_radius_mm = w_mm;
+      marks_->AddCrater(hit.point_in_world.x(), hit.point_in_world.y(), 0.5 * pulse.diameter_mm,
+                        w_mm, options_.part.ablation_depth_um);
+      if (pulse.diameter_mm > 0) ambient_valid_ = false;  // the cameras see the new marks
       pulses_.push_back(pulse);
     }
   }
@@ -279,6 +285,33 @@ Status SimWorld::ExecuteMarkingList(const std::vector<ListMove>& moves, const Ma
   last_command_ = at;
   rest_angles_ = actual;
   return Status::Ok();
+}
+
+Status SimWorld::MoveHead(const Eigen::Vector3d& point_in_galvo) {
+  return ExecuteMarkingList({{ListMove::Kind::kJump, point_in_galvo}}, MarkingParams{});
+}
+
+double SimWorld::MarkFactor(double x, double y, double half) const {
+  if (marks_->empty()) return 1.0;
+  const PartOptions& po = options_.part;
+  const auto factor = [&](double depth_um) {
+    return po.marked_reflectance +
+           (1.0 - po.marked_reflectance) * std::exp(-depth_um / po.darkening_depth_um);
+  };
+  double x0, y0, x1, y1;
+  marks_->Bounds(&x0, &y0, &x1, &y1);
+  if (x + half < x0 || x - half > x1 || y + half < y0 || y - half > y1) return 1.0;
+  // A footprint wider than the map's cells: average samples one cell apart (at most 16 x 16).
+  const int n = std::clamp(static_cast<int>(std::ceil(2.0 * half / MarkMap::kCellMm)), 1, 16);
+  double sum = 0.0;
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const double sx = n == 1 ? x : x - half + 2.0 * half * (i + 0.5) / n;
+      const double sy = n == 1 ? y : y - half + 2.0 * half * (j + 0.5) / n;
+      sum += factor(marks_->DepthUm(sx, sy));
+    }
+  }
+  return sum / (n * n);
 }
 
 Status SimWorld::MoveStage(double z_mm) {
@@ -361,6 +394,9 @@ Result<Frame> SimWorld::Grab() {
             }
           }
           albedo = sum / 16.0;
+        }
+        if (!hit.on_board) {
+          albedo *= MarkFactor(hit.point_in_world.x(), hit.point_in_world.y(), 0.5 * footprint_mm);
         }
         // Diffuse room light from above: surfaces facing up get all of it, walls half.
         const double shade = 0.5 + 0.5 * std::max(0.0, hit.normal.z());

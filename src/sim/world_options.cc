@@ -46,6 +46,7 @@ Status ScanHeadOptions::Validate() const {
   INSITU_RETURN_IF_ERROR(design.Validate().Prefixed("design"));
   INSITU_RETURN_IF_ERROR(pointer.Validate().Prefixed("pointer"));
   INSITU_RETURN_IF_ERROR(marking.Validate().Prefixed("marking"));
+  INSITU_RETURN_IF_ERROR(coaxial.Validate().Prefixed("coaxial"));
   if (!Positive(field_half_size_mm)) return Bad("field_half_size_mm", "> 0", field_half_size_mm);
   if (!(focus_range_mm >= 0.0)) return Bad("focus_range_mm", ">= 0", focus_range_mm);
   if (!(tracking_lag_ms >= 0.0 && tracking_lag_ms < 100.0)) {
@@ -53,6 +54,23 @@ Status ScanHeadOptions::Validate() const {
   }
   if (!Positive(clock_us)) return Bad("clock_us", "> 0", clock_us);
   if (!Positive(y_mirror_height_mm)) return Bad("y_mirror_height_mm", "> 0", y_mirror_height_mm);
+  return Status::Ok();
+}
+
+Status CoaxialCameraOptions::Validate() const {
+  if (width_px < 16 || width_px > 8192) return Bad("width_px", "in [16, 8192]", width_px);
+  if (height_px < 16 || height_px > 8192) return Bad("height_px", "in [16, 8192]", height_px);
+  if (!(pixel_on_part_um > 0.1 && pixel_on_part_um < 1000)) {
+    return Bad("pixel_on_part_um", "in (0.1, 1000)", pixel_on_part_um);
+  }
+  if (!(numerical_aperture > 0 && numerical_aperture < 1)) {
+    return Bad("numerical_aperture", "in (0, 1)", numerical_aperture);
+  }
+  if (!(psf_sigma_um >= 0)) return Bad("psf_sigma_um", ">= 0", psf_sigma_um);
+  if (!(illumination_e_per_ms >= 0)) return Bad("illumination_e_per_ms", ">= 0", illumination_e_per_ms);
+  if (!Positive(full_well_e)) return Bad("full_well_e", "> 0", full_well_e);
+  if (!(read_noise_e >= 0)) return Bad("read_noise_e", ">= 0", read_noise_e);
+  if (!Positive(exposure_ms)) return Bad("exposure_ms", "> 0", exposure_ms);
   return Status::Ok();
 }
 
@@ -103,6 +121,11 @@ Status PartOptions::Validate() const {
     return InvalidArgument("kind must be one of none, plane, step_gauge, arc, insert, got " + kind);
   }
   if (!(albedo >= 0 && albedo <= 1)) return Bad("albedo", "in [0, 1]", albedo);
+  if (!(ablation_depth_um >= 0)) return Bad("ablation_depth_um", ">= 0", ablation_depth_um);
+  if (!(marked_reflectance >= 0 && marked_reflectance <= 1)) {
+    return Bad("marked_reflectance", "in [0, 1]", marked_reflectance);
+  }
+  if (!Positive(darkening_depth_um)) return Bad("darkening_depth_um", "> 0", darkening_depth_um);
   if (!Positive(plane_thickness_mm)) return Bad("plane_thickness_mm", "> 0", plane_thickness_mm);
   if (!Positive(gauge_length_mm)) return Bad("gauge_length_mm", "> 0", gauge_length_mm);
   if (!Positive(gauge_step_width_mm)) return Bad("gauge_step_width_mm", "> 0", gauge_step_width_mm);

@@ -26,7 +26,8 @@ class MachineClock {
 
 struct Machine {
   std::unique_ptr<Scanner> scanner;
-  std::unique_ptr<Camera> camera;
+  std::unique_ptr<Camera> camera;   // the side camera that sees the pointer line
+  std::unique_ptr<Camera> coaxial;  // looks through the scan head; null if the head has none
   std::unique_ptr<Stage> stage;
   std::unique_ptr<MachineClock> clock;
   std::unique_ptr<Operator> person;

@@ -51,8 +51,11 @@ struct MarkPulse {
   Eigen::Vector3d point_in_world = Eigen::Vector3d::Zero();
   double diameter_mm = 0.0;
   double defocus_mm = 0.0;
+  double beam_radius_mm = 0.0;  // 1/e^2 radius of the beam on the surface
   bool on_part = false;
 };
+
+class MarkMap;
 
 // What the camera saw in the last frame, from the simulator's side: for tests only.
 struct FrameTruth {
@@ -87,6 +90,9 @@ class SimWorld {
   // laser pulse while the laser is on ablates a crater where the beam meets the surface (its
   // diameter from the pulse fluence at the beam radius there: D^2 = 2 w^2 ln(F0 / F_th)).
   Status ExecuteMarkingList(const std::vector<ListMove>& moves, const MarkingParams& params);
+  // Moves the mirrors and the focus to a point with every beam off (a jump), and waits for
+  // them to settle: where the coaxial camera then looks.
+  Status MoveHead(const Eigen::Vector3d& point_in_galvo);
   // Where the head would put the chief ray for a command (after its correction table).
   bool CommandToAngles(const Eigen::Vector3d& point_in_galvo, MirrorAngles* angles) const;
 
@@ -110,6 +116,11 @@ class SimWorld {
   double exposure_us() const;
   // Exposes from now for the exposure time (the clock advances) and returns the frame.
   Result<Frame> Grab();
+
+  // The scan head's coaxial camera: exposes for `exposure_us` around where the head points,
+  // sharp at the dynamic-focus height (the clock advances). 8-bit frame.
+  // Errors: failed_precondition if the head has no coaxial camera; out_of_range exposure.
+  Result<Frame> GrabCoaxial(double exposure_us);
 
   const WorldOptions& options() const { return options_; }
 
@@ -135,6 +146,9 @@ class SimWorld {
     double dt_s = 0.0;
   };
   void PointerSamples(double t0, double t1, std::vector<BeamSample>* samples) const;
+  // Reflectance of the marked surface relative to the bare one at a world xy, averaged over a
+  // square of half-size `half_mm` (a camera pixel's footprint); 1 where nothing was marked.
+  double MarkFactor(double x_mm, double y_mm, double half_mm) const;
   Eigen::Vector3d PointerCommandAt(double t) const;
 
   WorldOptions options_;
@@ -151,6 +165,7 @@ class SimWorld {
   uint64_t frame_counter_ = 0;
   int64_t laser_on_ticks_ = 0;
   std::vector<MarkPulse> pulses_;
+  std::unique_ptr<MarkMap> marks_;  // what the pulses ablated, for the cameras
   Eigen::Vector3d last_command_ = Eigen::Vector3d::Zero();
   FrameTruth truth_;
   // Ambient image (electrons per second per pixel), cached per stage height and binning.

@@ -39,6 +39,28 @@ struct BeamOptions {
   Status Validate() const;
 };
 
+// The scan head's coaxial camera: it looks down through the same mirrors and f-theta objective
+// as the beams (a dichroic before the mirrors), so it sees a small field around wherever the
+// head points, focused at the dynamic-focus height. Used to inspect marks.
+struct CoaxialCameraOptions {
+  bool present = true;
+  std::string model = "SIM-COAX";
+  std::string serial = "SIM-C001";
+  int width_px = 1024;
+  int height_px = 1024;
+  double pixel_on_part_um = 5.0;       // sensor pitch over the magnification, as built
+  double rotation_deg = 0.4;           // sensor x against galvo x, as mounted
+  double numerical_aperture = 0.027;   // 7 mm aperture radius at 255 mm: defocus blur 2 NA dz
+  double psf_sigma_um = 4.3;           // diffraction at 550 nm: 0.21 lambda / NA
+  double focus_offset_mm = 0.0;        // sharp image this far above the marking beam's focus
+  double illumination_e_per_ms = 8000.0;  // coaxial LED, electrons per ms on a white pixel
+  double full_well_e = 10000.0;
+  double read_noise_e = 6.0;
+  double exposure_ms = 2.0;
+
+  Status Validate() const;
+};
+
 struct ScanHeadOptions {
   ScanOpticsGeometry optics;           // as built (the truth)
   ScanOpticsGeometry design;           // what the head's own correction table assumes
@@ -51,6 +73,7 @@ struct ScanHeadOptions {
   double clock_us = 10.0;              // list clock
   BeamOptions pointer;                 // red pointer (class 2)
   BeamOptions marking{1064.0, 30000.0, 0.040, 1.3};  // fibre marking laser
+  CoaxialCameraOptions coaxial;
 
   Status Validate() const;
 };
@@ -98,6 +121,13 @@ struct PartOptions {
   // Single-pulse ablation threshold of the part's material for the marking laser (ns pulses,
   // 1064 nm; steels 0.5..2 J/cm^2).
   double ablation_threshold_j_per_cm2 = 1.0;
+  // What a mark looks like: each pulse removes delta ln(F / F_th) (the logarithmic ablation
+  // law; delta is the effective penetration depth), and the ablated surface darkens with
+  // depth towards `marked_reflectance` of the bare albedo (oxide and roughness), with
+  // 1/e depth `darkening_depth_um`.
+  double ablation_depth_um = 0.4;
+  double marked_reflectance = 0.25;
+  double darkening_depth_um = 3.0;
   // plane: a plate of the given thickness covering the footprint
   double plane_thickness_mm = 2.0;
   std::array<double, 2> plane_size_mm{120.0, 120.0};

@@ -75,6 +75,39 @@ class SimCamera : public Camera {
   std::shared_ptr<sim::SimWorld> world_;
 };
 
+// The scan head's coaxial camera: sees around wherever the head points.
+class SimCoaxialCamera : public Camera {
+ public:
+  explicit SimCoaxialCamera(std::shared_ptr<sim::SimWorld> world)
+      : world_(std::move(world)),
+        exposure_us_(world_->options().scan_head.coaxial.exposure_ms * 1e3) {}
+  CameraInfo info() const override {
+    const auto& c = world_->options().scan_head.coaxial;
+    return {c.model, c.serial, c.width_px, c.height_px, 8};
+  }
+  Status SetExposure(double exposure_us) override {
+    if (!(exposure_us >= 10.0 && exposure_us <= 1e6)) {
+      return OutOfRange("coaxial exposure " + std::to_string(exposure_us) +
+                        " us is outside the camera's range [10, 1e6] us");
+    }
+    exposure_us_ = exposure_us;
+    return Status::Ok();
+  }
+  Status SetGain(double gain_db) override {
+    if (gain_db != 0.0) return OutOfRange("the coaxial camera has a fixed gain of 0 dB");
+    return Status::Ok();
+  }
+  Status SetBinning(int binning) override {
+    if (binning != 1) return OutOfRange("the coaxial camera does not bin");
+    return Status::Ok();
+  }
+  Result<Frame> Grab() override { return world_->GrabCoaxial(exposure_us_); }
+
+ private:
+  std::shared_ptr<sim::SimWorld> world_;
+  double exposure_us_;
+};
+
 class SimStage : public Stage {
  public:
   explicit SimStage(std::shared_ptr<sim::SimWorld> world) : world_(std::move(world)) {}
@@ -120,6 +153,9 @@ Machine MakeSimMachine(std::shared_ptr<sim::SimWorld> world) {
   Machine m;
   m.scanner = std::make_unique<SimScanner>(world);
   m.camera = std::make_unique<SimCamera>(world);
+  if (world->options().scan_head.coaxial.present) {
+    m.coaxial = std::make_unique<SimCoaxialCamera>(world);
+  }
   m.stage = std::make_unique<SimStage>(world);
   m.clock = std::make_unique<SimClock>(world);
   m.person = std::make_unique<SimOperator>(world);
