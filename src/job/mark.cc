@@ -40,6 +40,8 @@ struct ItemSpec {
   // Which point of the pattern the placement's offset puts on the part: the file's origin
   // (vector files) or the centre of its bounding box. Codes and rasters are always centred.
   std::string anchor = "origin";
+  // project: straight down onto the surface; wrap: equal arc length on it (seed 000 case 3).
+  std::string mapping = "project";
 };
 
 struct MarkJobSpec {
@@ -49,6 +51,7 @@ struct MarkJobSpec {
   pattern::HeadFormat head;
   bool head_field_set = false, head_focus_set = false;  // else taken from the scan head
   VerifyOptions verify;
+  double spot_diameter_mm = 0.04;  // the marking beam's 1/e^2 diameter at focus (lens data)
 };
 
 // pattern, placement and hatch of one item, from `r` (the job's root or an element of items).
@@ -77,6 +80,7 @@ void ReadItem(ConfigReader& r, const std::string& folder, ItemSpec* s) {
   pl.Read("rotation_deg", &s->placement.rotation_deg);
   pl.ReadArray("offset_mm", s->placement.offset_mm.data(), 2);
   pl.ReadEnum("anchor", &s->anchor, {"origin", "centre"});
+  pl.ReadEnum("mapping", &s->mapping, {"project", "wrap"});
   if (pl.ok() && !(s->placement.scale > 0)) pl.Fail("scale", "must be > 0");
   ConfigReader& h = r.Section("hatch");
   h.Read("spacing_mm", &s->hatch_spacing_mm);
@@ -133,6 +137,8 @@ void ReadMarkSections(ConfigReader& r, const std::string& folder, MarkJobSpec* s
   l.Read("polygon_delay_us", &m.polygon_delay_us);
   l.Read("max_step_mm", &m.max_step_mm);
   l.Read("focus_offset_mm", &m.focus_offset_mm);
+  l.Read("spot_diameter_mm", &s->spot_diameter_mm);
+  if (l.ok() && !(s->spot_diameter_mm > 0)) l.Fail("spot_diameter_mm", "must be > 0");
   if (l.ok()) l.FailFromValidate(m.Validate());
   ConfigReader& hd = r.Section("head");
   hd.Read("bits", &s->head.bits);
@@ -156,7 +162,11 @@ void ReadMarkSections(ConfigReader& r, const std::string& folder, MarkJobSpec* s
 }
 
 // The pattern's segments in pattern mm (before placement).
-Result<std::vector<pattern::Segment2>> PatternSegments(const ItemSpec& s) {
+// Vector outlines are put in travel order; *jump_mm and *jump_file_mm get the outlines' jump
+// length in that order and in the file's.
+Result<std::vector<pattern::Segment2>> PatternSegments(const ItemSpec& s, double* jump_mm,
+                                                       double* jump_file_mm) {
+  *jump_mm = *jump_file_mm = 0.0;
   const PatternSpec& p = s.pattern;
   std::vector<pattern::Segment2> out;
   // The spacing is asked for on the part: hatch in pattern units, before the placement scales.
@@ -191,6 +201,8 @@ Result<std::vector<pattern::Segment2>> PatternSegments(const ItemSpec& s) {
       }
     }
     if (s.outline || !closed) {
+      const Eigen::Vector2d start = out.empty() ? Eigen::Vector2d::Zero() : out.back().b;
+      *jump_mm = pattern::OrderForTravel(&vec, start, jump_file_mm);
       const auto outline = pattern::Outline(vec);
       out.insert(out.end(), outline.begin(), outline.end());
     }
@@ -245,11 +257,15 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
   }));
   // The patterns are read before the machine moves: a bad pattern file fails now.
   std::vector<std::vector<pattern::Segment2>> placed_items;
+  double outline_jump_mm = 0.0, outline_jump_file_mm = 0.0;  // pattern units
   std::vector<pattern::Segment2> placed;
   for (size_t i = 0; i < mark.items.size(); ++i) {
     const std::string where =
         mark.items.size() > 1 ? ": items[" + std::to_string(i) + "].pattern" : ": pattern";
-    auto segments = PatternSegments(mark.items[i]);
+    double jump = 0.0, jump_file = 0.0;
+    auto segments = PatternSegments(mark.items[i], &jump, &jump_file);
+    outline_jump_mm += jump;
+    outline_jump_file_mm += jump_file;
     if (!segments.ok()) return segments.status().Prefixed(job.path + where);
     if (segments->empty()) return InvalidArgument(job.path + where + ": nothing to mark");
     if (mark.items[i].anchor == "centre") {
@@ -309,6 +325,15 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
   }
   auto surface = geometry::SurfaceModel::Build(scanned->cloud, mark.surface);
   if (!surface.ok()) return finish(false, surface.status().ToString());
+  for (size_t i = 0; i < mark.items.size(); ++i) {
+    if (mark.items[i].mapping != "wrap") continue;
+    auto wrapped = pattern::WrapOnSurface(placed_items[i], mark.items[i].placement.offset_mm,
+                                          *surface, mark.laser.max_step_mm);
+    if (!wrapped.ok()) return finish(false, "item " + std::to_string(i) + ": " + wrapped.status().ToString());
+    placed_items[i] = std::move(*wrapped);
+  }
+  placed.clear();
+  for (const auto& item : placed_items) placed.insert(placed.end(), item.begin(), item.end());
   pattern::MarkPlanReport plan;
   auto list = pattern::PlanMarking(placed, *surface, mark.laser, &plan);
   if (!list.ok()) return finish(false, list.status().ToString());
@@ -320,6 +345,19 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
   report.metrics["surface_z_min_mm"] = plan.z_min_mm;
   report.metrics["surface_z_max_mm"] = plan.z_max_mm;
   report.metrics["list_duration_s"] = pattern::ListDuration(*list);
+  if (outline_jump_file_mm > 0) {
+    report.metrics["outline_jump_mm"] = outline_jump_mm;
+    report.metrics["outline_jump_mm_file_order"] = outline_jump_file_mm;
+  }
+  for (const ItemSpec& it : mark.items) {
+    if (!it.hatch_angles_deg.empty() && it.hatch_spacing_mm < mark.spot_diameter_mm) {
+      report.warnings.push_back(
+          "hatch spacing " + std::to_string(it.hatch_spacing_mm) + " mm is below the " +
+          std::to_string(mark.spot_diameter_mm) +
+          " mm spot: neighbouring lines overlap, every area is marked more than once (more "
+          "heat, deeper marks)");
+    }
+  }
   if (plan.points_without_surface > 0) {
     const Eigen::Vector2d& p = plan.unmarked_mm.front();
     char where[96];

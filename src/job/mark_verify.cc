@@ -130,6 +130,19 @@ std::vector<Eigen::Vector2d> FullyHatchedSpots(const ItemDesign& d, double half_
   }
   std::vector<Eigen::Vector2d> candidates;
   if (!t_ref) return candidates;
+  // A line cut into pieces (wrapped onto a curve, or split at steps) is one run.
+  for (auto& [key, runs] : lines) {
+    std::sort(runs.begin(), runs.end());
+    std::vector<std::pair<double, double>> merged;
+    for (const auto& r : runs) {
+      if (!merged.empty() && r.first <= merged.back().second + 1e-6) {
+        merged.back().second = std::max(merged.back().second, r.second);
+      } else {
+        merged.push_back(r);
+      }
+    }
+    runs = std::move(merged);
+  }
   const int k_max = static_cast<int>(std::ceil(half_width / s));
   const double step = std::max(0.05, 0.5 * half_width);
   for (double y = lo.y(); y <= hi.y(); y += step) {

@@ -111,6 +111,60 @@ Result<VectorPattern> LoadHpgl(const std::string& path) {
   return ParseHpgl(text, path);
 }
 
+namespace {
+
+double JumpLength(const std::vector<Polyline>& paths, Eigen::Vector2d at) {
+  double total = 0.0;
+  for (const Polyline& p : paths) {
+    if (p.points.empty()) continue;
+    total += (p.points.front() - at).norm();
+    at = p.closed ? p.points.front() : p.points.back();
+  }
+  return total;
+}
+
+}  // namespace
+
+double OrderForTravel(VectorPattern* pattern, const Eigen::Vector2d& start, double* before) {
+  std::vector<Polyline>& paths = pattern->paths;
+  if (before) *before = JumpLength(paths, start);
+  // Greedy nearest entry: O(n^2 + n * points), fine for the thousands of paths of a drawing.
+  std::vector<Polyline> ordered;
+  std::vector<bool> used(paths.size(), false);
+  Eigen::Vector2d at = start;
+  for (size_t taken = 0; taken < paths.size(); ++taken) {
+    double best = 1e300;
+    size_t pick = 0, vertex = 0;
+    bool reverse = false;
+    for (size_t i = 0; i < paths.size(); ++i) {
+      const auto& pts = paths[i].points;
+      if (used[i] || pts.empty()) continue;
+      if (paths[i].closed) {
+        for (size_t k = 0; k < pts.size(); ++k) {
+          const double d = (pts[k] - at).squaredNorm();
+          if (d < best) best = d, pick = i, vertex = k, reverse = false;
+        }
+      } else {
+        const double d0 = (pts.front() - at).squaredNorm(), d1 = (pts.back() - at).squaredNorm();
+        if (d0 < best) best = d0, pick = i, vertex = 0, reverse = false;
+        if (d1 < best) best = d1, pick = i, vertex = 0, reverse = true;
+      }
+    }
+    if (best == 1e300) break;  // only empty paths left
+    used[pick] = true;
+    Polyline p = paths[pick];
+    if (reverse) std::reverse(p.points.begin(), p.points.end());
+    if (p.closed) std::rotate(p.points.begin(), p.points.begin() + static_cast<long>(vertex), p.points.end());
+    at = p.closed ? p.points.front() : p.points.back();
+    ordered.push_back(std::move(p));
+  }
+  for (size_t i = 0; i < paths.size(); ++i) {
+    if (paths[i].points.empty()) ordered.push_back(paths[i]);
+  }
+  paths = std::move(ordered);
+  return JumpLength(paths, start);
+}
+
 std::vector<Segment2> Outline(const VectorPattern& pattern) {
   std::vector<Segment2> out;
   for (const Polyline& p : pattern.paths) {

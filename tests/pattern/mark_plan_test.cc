@@ -69,3 +69,75 @@ TEST(MarkPlan, PatternOffThePartIsRefused) {
 
 }  // namespace
 }  // namespace insitu::pattern
+
+namespace insitu::pattern {
+namespace {
+
+TEST(MarkPlan, AConnectedPathIsOneMarkSequence) {
+  auto surface = geometry::SurfaceModel::Build(Scan(), {});
+  ASSERT_TRUE(surface.ok());
+  // A square outline as four segments, each starting where the last ended: one jump, then
+  // marks all the way round (the laser never switches off at a corner).
+  const std::vector<Segment2> square{{{0, 0}, {1, 0}}, {{1, 0}, {1, 1}}, {{1, 1}, {0, 1}}, {{0, 1}, {0, 0}}};
+  MarkPlanReport report;
+  auto list = PlanMarking(square, *surface, MarkSettings{}, &report);
+  ASSERT_TRUE(list.ok());
+  int jumps = 0;
+  for (const ListCommand& c : *list) jumps += c.op == ListOp::kJumpAbs;
+  EXPECT_EQ(jumps, 1);
+  EXPECT_NEAR(report.marked_length_mm, 4.0, 1e-9);
+}
+
+// A cylinder crown along y, radius 27.8 mm (the simulated arc part's), top at z = 11.5.
+double Crown(double x) { return 11.5 - 27.8 + std::sqrt(27.8 * 27.8 - x * x); }
+
+geometry::Cloud CrownScan() {
+  geometry::Cloud c;
+  for (double x = -15; x <= 15 + 1e-9; x += 0.1) {
+    for (double y = -3; y <= 3; y += 0.1) {
+      geometry::CloudPoint p;
+      p.point_in_galvo = Eigen::Vector3f(x, y, Crown(x));
+      c.push_back(p);
+    }
+  }
+  return c;
+}
+
+// Length of a path along the true crown (fine numeric integration of each mapped piece).
+double ArcLength(const std::vector<Segment2>& segs) {
+  double total = 0.0;
+  for (const Segment2& s : segs) {
+    for (int k = 0; k < 400; ++k) {
+      const Eigen::Vector2d a = s.a + (s.b - s.a) * (k / 400.0), b = s.a + (s.b - s.a) * ((k + 1) / 400.0);
+      total += std::sqrt((b - a).squaredNorm() + std::pow(Crown(b.x()) - Crown(a.x()), 2));
+    }
+  }
+  return total;
+}
+
+TEST(Wrap, KeepsTheLengthOnACurvedSurface) {
+  auto surface = geometry::SurfaceModel::Build(CrownScan(), {});
+  ASSERT_TRUE(surface.ok());
+  // A 20 mm line across the crown, and one along it.
+  const std::vector<Segment2> across{{{-10.0, 0.5}, {10.0, 0.5}}};
+  const std::vector<Segment2> along{{{1.0, -2.0}, {1.0, 2.0}}};
+  auto wrapped = WrapOnSurface(across, {0.0, 0.5}, *surface, 0.2);
+  ASSERT_TRUE(wrapped.ok()) << wrapped.status().ToString();
+  // Projected straight down the line covers 2 R asin(10 / R) = 20.457 mm of surface (slopes
+  // up to 21 deg at x = +-10); wrapped, 20 mm. The surface is an exact cylinder sampled every 0.1 mm, so the
+  // local planes' heights are good to ~1e-4 mm and the 0.2 mm chords of R = 27.8 mm sag by
+  // 2e-4 mm: the wrapped length is right to ~1e-3 mm.
+  EXPECT_NEAR(ArcLength(across), 2 * 27.8 * std::asin(10.0 / 27.8), 1e-3);
+  EXPECT_NEAR(ArcLength(*wrapped), 20.0, 2e-3);
+  // Along the cylinder's axis nothing changes (the cloud is float: heights carry ~1e-6 mm
+  // rounding, the section's length over 2 mm then ~1e-5 mm).
+  auto straight = WrapOnSurface(along, {1.0, 0.0}, *surface, 0.2);
+  ASSERT_TRUE(straight.ok());
+  EXPECT_NEAR(straight->front().a.y(), -2.0, 1e-4);
+  EXPECT_NEAR(straight->back().b.y(), 2.0, 1e-4);
+  // An anchor off the measured surface is refused.
+  EXPECT_FALSE(WrapOnSurface(across, {40.0, 0.0}, *surface, 0.2).ok());
+}
+
+}  // namespace
+}  // namespace insitu::pattern

@@ -2,6 +2,7 @@
 // closed shapes, clear errors; hatching of closed shapes by the even-odd rule.
 #include "insitu/pattern/vector.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <gtest/gtest.h>
@@ -67,6 +68,44 @@ TEST(Hatch, EvenOddFillOfAShapeWithAHole) {
   open.paths.push_back({{{0, 0}, {1, 1}}, false});
   EXPECT_FALSE(HatchPolygons(open, 0.1, 0).ok());
   EXPECT_FALSE(HatchPolygons(p, 0.0, 0).ok());
+}
+
+}  // namespace
+}  // namespace insitu::pattern
+
+namespace insitu::pattern {
+namespace {
+
+TEST(TravelOrder, NearestEntriesShortenTheJumps) {
+  // Ten open strokes laid out in a row but listed in a scrambled order, every other one drawn
+  // right to left, plus a closed square whose nearest corner is not its first.
+  VectorPattern p;
+  const int order[10] = {7, 2, 9, 0, 5, 3, 8, 1, 6, 4};
+  for (int k : order) {
+    Polyline s;
+    s.points = {{k * 2.0, 0.0}, {k * 2.0, 1.0}};
+    if (k % 2) std::reverse(s.points.begin(), s.points.end());
+    p.paths.push_back(s);
+  }
+  Polyline square;
+  square.closed = true;
+  square.points = {{30.0, 5.0}, {31.0, 5.0}, {31.0, 6.0}, {30.0, 6.0}};
+  p.paths.push_back(square);
+  double before = 0.0;
+  const double after = OrderForTravel(&p, {0.0, 0.0}, &before);
+  // Boustrophedon through the row: 9 jumps of 2 mm (each stroke entered at the end where the
+  // last one left; the tenth ends at (18, 0)), then to the square's nearest corner (30, 5).
+  const double expected = 9 * 2.0 + std::hypot(12.0, 5.0);
+  EXPECT_NEAR(after, expected, 1e-9);
+  EXPECT_GT(before, 2.0 * after);
+  ASSERT_EQ(p.paths.size(), 11u);
+  EXPECT_TRUE(p.paths.back().closed);
+  EXPECT_EQ(p.paths.back().points.front(), Eigen::Vector2d(30.0, 5.0));
+  // Nothing lost: the same strokes, each intact.
+  for (int i = 0; i < 10; ++i) {
+    EXPECT_EQ(p.paths[i].points.size(), 2u);
+    EXPECT_NEAR(std::abs(p.paths[i].points[1].y() - p.paths[i].points[0].y()), 1.0, 1e-12);
+  }
 }
 
 }  // namespace

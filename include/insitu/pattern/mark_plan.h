@@ -40,6 +40,22 @@ struct MarkPlanReport {
   double z_min_mm = 0.0, z_max_mm = 0.0;     // heights the marks follow
 };
 
+// Equal-arc-length mapping (seed 000 sec. 3.3, case 3): a pattern keeps its size on a curved
+// surface instead of being projected straight down (which shrinks it on the surface by the
+// cosine of the slope). Each placed point's offset from `anchor_mm` along galvo x becomes an
+// arc length along the measured surface's section y = anchor.y, and its offset along y one
+// along the section x = anchor.x. Exact for surfaces curved in one direction (cylinders, such
+// as the seed's arc), an approximation for doubly curved ones. Segments are first cut into
+// steps of at most max_step_mm so the mapped path bends with the surface. Beyond the measured
+// section the mapping continues at the last measured slope (those points then find no surface
+// and are not marked). Galvo frame, mm.
+// Errors: invalid_argument for max_step_mm <= 0; failed_precondition when the surface has no
+// height at the anchor.
+Result<std::vector<Segment2>> WrapOnSurface(const std::vector<Segment2>& placed,
+                                            const Eigen::Vector2d& anchor_mm,
+                                            const geometry::SurfaceModel& surface,
+                                            double max_step_mm);
+
 // Errors: invalid_argument for bad settings; failed_precondition when no point of the pattern
 // lies on measured surface (the pattern is not on the part).
 Result<std::vector<ListCommand>> PlanMarking(const std::vector<Segment2>& segments,

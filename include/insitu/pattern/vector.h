@@ -49,6 +49,13 @@ Result<VectorPattern> ParseDxf(const std::string& text, const std::string& origi
                                double tolerance_mm = 0.005);
 Result<VectorPattern> LoadDxf(const std::string& path, double tolerance_mm = 0.005);
 
+// Travel order of the outlines: the paths reordered greedily, each next the one whose entry is
+// nearest to where the last ended (from `start_mm`), open paths reversed when their far end is
+// nearer and closed paths rotated to start at their nearest vertex. Returns the total jump
+// length (mm) of the new order; *before, if given, gets that of the file's order.
+double OrderForTravel(VectorPattern* pattern, const Eigen::Vector2d& start_mm,
+                      double* before = nullptr);
+
 // Every path as segments (the outlines to mark).
 std::vector<Segment2> Outline(const VectorPattern& pattern);
 
