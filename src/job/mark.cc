@@ -12,6 +12,7 @@
 #include "insitu/pattern/codes.h"
 #include "insitu/pattern/galvo_list.h"
 #include "insitu/pattern/mark_plan.h"
+#include "insitu/pattern/path_opt.h"
 #include "insitu/pattern/raster.h"
 #include "insitu/pattern/vector.h"
 #include "job/mark_verify.h"
@@ -42,6 +43,17 @@ struct ItemSpec {
   std::string anchor = "origin";
   // project: straight down onto the surface; wrap: equal arc length on it (seed 000 case 3).
   std::string mapping = "project";
+  // Vector outlines through seed 004's path optimisation, within max_error_mm on the part.
+  bool optimise_paths = true;
+  double path_max_error_mm = 0.002;
+  std::string path_placement = "band";  // band: chords straddle the curve; curve: on it
+};
+
+// What path optimisation did to an item's outlines.
+struct PathStats {
+  int input_points = 0, mark_points = 0;
+  double max_error_mm = 0.0;
+  double jump_mm = 0.0, jump_file_mm = 0.0;  // outline jumps in travel and file order
 };
 
 struct MarkJobSpec {
@@ -117,6 +129,18 @@ void ReadMarkSections(ConfigReader& r, const std::string& folder, MarkJobSpec* s
     s->items.emplace_back();
     ReadItem(r, folder, &s->items.back());
   }
+  // Path optimisation of vector outlines: one setting for every item.
+  ConfigReader& po = r.Section("path");
+  ItemSpec defaults;
+  po.Read("optimise", &defaults.optimise_paths);
+  po.Read("max_error_mm", &defaults.path_max_error_mm);
+  po.ReadEnum("placement", &defaults.path_placement, {"band", "curve"});
+  if (po.ok() && !(defaults.path_max_error_mm > 0)) po.Fail("max_error_mm", "must be > 0");
+  for (ItemSpec& item : s->items) {
+    item.optimise_paths = defaults.optimise_paths;
+    item.path_max_error_mm = defaults.path_max_error_mm;
+    item.path_placement = defaults.path_placement;
+  }
   ConfigReader& su = r.Section("surface");
   su.Read("radius_mm", &s->surface.radius_mm);
   su.Read("min_points", &s->surface.min_points);
@@ -162,11 +186,10 @@ void ReadMarkSections(ConfigReader& r, const std::string& folder, MarkJobSpec* s
 }
 
 // The pattern's segments in pattern mm (before placement).
-// Vector outlines are put in travel order; *jump_mm and *jump_file_mm get the outlines' jump
-// length in that order and in the file's.
-Result<std::vector<pattern::Segment2>> PatternSegments(const ItemSpec& s, double* jump_mm,
-                                                       double* jump_file_mm) {
-  *jump_mm = *jump_file_mm = 0.0;
+// Vector outlines go through path optimisation (seed 004) and into travel order; *stats says
+// what that did.
+Result<std::vector<pattern::Segment2>> PatternSegments(const ItemSpec& s, PathStats* stats) {
+  *stats = PathStats{};
   const PatternSpec& p = s.pattern;
   std::vector<pattern::Segment2> out;
   // The spacing is asked for on the part: hatch in pattern units, before the placement scales.
@@ -201,8 +224,26 @@ Result<std::vector<pattern::Segment2>> PatternSegments(const ItemSpec& s, double
       }
     }
     if (s.outline || !closed) {
+      if (s.optimise_paths) {
+        // The error is asked for on the part: the fit works in pattern units at the
+        // placement's scale, and its mark points go back to pattern units for Place().
+        pattern::PathOptOptions o =
+            pattern::PathOptOptions::ForErrorBudget(s.placement.scale, s.path_max_error_mm);
+        o.placement = s.path_placement == "band" ? pattern::PathOptOptions::Placement::kToleranceBand
+                                                 : pattern::PathOptOptions::Placement::kOnCurve;
+        for (pattern::Polyline& path : vec.paths) {
+          if (path.points.size() < 3) continue;
+          stats->input_points += static_cast<int>(path.points.size());
+          auto opt = pattern::OptimisePolyline(path, o);
+          if (!opt.ok()) return opt.status();
+          for (Eigen::Vector2d& q : opt->marks.points) q /= s.placement.scale;
+          path.points = std::move(opt->marks.points);
+          stats->mark_points += static_cast<int>(path.points.size());
+          stats->max_error_mm = std::max(stats->max_error_mm, opt->summary.max_error_mm);
+        }
+      }
       const Eigen::Vector2d start = out.empty() ? Eigen::Vector2d::Zero() : out.back().b;
-      *jump_mm = pattern::OrderForTravel(&vec, start, jump_file_mm);
+      stats->jump_mm = pattern::OrderForTravel(&vec, start, &stats->jump_file_mm);
       const auto outline = pattern::Outline(vec);
       out.insert(out.end(), outline.begin(), outline.end());
     }
@@ -257,15 +298,18 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
   }));
   // The patterns are read before the machine moves: a bad pattern file fails now.
   std::vector<std::vector<pattern::Segment2>> placed_items;
-  double outline_jump_mm = 0.0, outline_jump_file_mm = 0.0;  // pattern units
+  PathStats paths;  // over all items
   std::vector<pattern::Segment2> placed;
   for (size_t i = 0; i < mark.items.size(); ++i) {
     const std::string where =
         mark.items.size() > 1 ? ": items[" + std::to_string(i) + "].pattern" : ": pattern";
-    double jump = 0.0, jump_file = 0.0;
-    auto segments = PatternSegments(mark.items[i], &jump, &jump_file);
-    outline_jump_mm += jump;
-    outline_jump_file_mm += jump_file;
+    PathStats st;
+    auto segments = PatternSegments(mark.items[i], &st);
+    paths.input_points += st.input_points;
+    paths.mark_points += st.mark_points;
+    paths.max_error_mm = std::max(paths.max_error_mm, st.max_error_mm);
+    paths.jump_mm += st.jump_mm * mark.items[i].placement.scale;
+    paths.jump_file_mm += st.jump_file_mm * mark.items[i].placement.scale;
     if (!segments.ok()) return segments.status().Prefixed(job.path + where);
     if (segments->empty()) return InvalidArgument(job.path + where + ": nothing to mark");
     if (mark.items[i].anchor == "centre") {
@@ -345,9 +389,14 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
   report.metrics["surface_z_min_mm"] = plan.z_min_mm;
   report.metrics["surface_z_max_mm"] = plan.z_max_mm;
   report.metrics["list_duration_s"] = pattern::ListDuration(*list);
-  if (outline_jump_file_mm > 0) {
-    report.metrics["outline_jump_mm"] = outline_jump_mm;
-    report.metrics["outline_jump_mm_file_order"] = outline_jump_file_mm;
+  if (paths.jump_file_mm > 0) {
+    report.metrics["outline_jump_mm"] = paths.jump_mm;
+    report.metrics["outline_jump_mm_file_order"] = paths.jump_file_mm;
+  }
+  if (paths.input_points > 0) {
+    report.metrics["path_points_in"] = paths.input_points;
+    report.metrics["path_points_out"] = paths.mark_points;
+    report.metrics["path_max_error_um"] = paths.max_error_mm * 1e3;
   }
   for (const ItemSpec& it : mark.items) {
     if (!it.hatch_angles_deg.empty() && it.hatch_spacing_mm < mark.spot_diameter_mm) {

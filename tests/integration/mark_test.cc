@@ -1,5 +1,6 @@
 // The in-situ demo end to end on the simulated cell: calibrate, scan the arc where it lies, put
-// a QR code (40 um hatch) and a plate (120 um hatch) on the measured surface, mark them, and
+// a QR code (40 um hatch), a plate (120 um hatch) and a dense glyph outline (path optimisation)
+// on the measured surface, mark them, and
 // let the job verify its marks. The test checks the job's own measurements against the
 // issue's bounds, then reads what the simulated laser really did: every crater in focus, on
 // the part, inside the patterns' footprints, and the crater map reads back as the code.
@@ -69,6 +70,9 @@ TEST(MarkJob, InSituDemoMarksInFocusAndVerifies) {
   EXPECT_NEAR(m["line_spacing_120_um"], 120.0, 2.0);
   ASSERT_TRUE(m.count("placement_error_mm"));
   EXPECT_LE(m["placement_error_mm"], 0.1);
+  // Seed 004 on the glyph's dense outline: far fewer points, within the 2 um asked for.
+  EXPECT_LT(m["path_points_out"], 0.25 * m["path_points_in"]);
+  EXPECT_LE(m["path_max_error_um"], 2.0);
   ASSERT_TRUE(m.count("focus_error_max_mm"));
   EXPECT_LT(m["focus_error_max_mm"], 0.45);
   std::printf("spacing %.2f / %.2f um, placement %.3f mm, focus %.3f mm\n",
@@ -86,7 +90,8 @@ TEST(MarkJob, InSituDemoMarksInFocusAndVerifies) {
     Eigen::Vector2d centre;
     double half;
   };
-  const Item items[2] = {{{1.0, -8.0}, 0.5 * code->width * 0.3}, {{1.5, 4.0}, 2.5}};
+  // The glyph (4.2 x 6.2 mm) is bounded by its larger half size.
+  const Item items[3] = {{{1.0, -8.0}, 0.5 * code->width * 0.3}, {{1.5, 4.0}, 2.5}, {{1.5, 12.0}, 3.1}};
   const double rot = 3.0 * M_PI / 180.0;
   const auto local = [&](const Eigen::Vector3d& p, const Item& it) {
     const Eigen::Vector2d d = p.head<2>() - it.centre;

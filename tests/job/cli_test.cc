@@ -99,3 +99,48 @@ TEST(Cli, CalibrationForAnotherCameraIsRefused) {
 }
 
 }  // namespace
+
+namespace {
+
+// A mark job around a pattern section (YAML, indented two spaces under `pattern:`).
+std::string MarkJobWith(const std::string& name, const std::string& pattern,
+                        const std::string& extra = "") {
+  return WriteJob(name, "job: mark\nmachine: {backend: sim, calibration: " + std::string(INSITU_SOURCE_DIR) +
+                            "/calib/as_designed.yaml}\nworld: " +
+                            std::string(INSITU_SOURCE_DIR) + "/config/worlds/default.yaml\n" +
+                            "pattern:\n" + pattern + extra);
+}
+
+// A bad pattern fails before the machine moves: one line naming the job, the pattern and the
+// problem, exit 2, nothing scanned.
+TEST(Cli, MarkJobRefusesBadPatterns) {
+  const std::string png = WriteJob("corrupt.png", "this is not an image");
+  const CliRun corrupt = Insitu(
+      "run " + MarkJobWith("m1.yaml", "  kind: raster\n  file: " + png + "\n") + " --out /tmp/insitu_cli");
+  EXPECT_EQ(corrupt.exit_code, 2);
+  EXPECT_NE(corrupt.err.find("corrupt.png"), std::string::npos) << corrupt.err;
+  EXPECT_NE(corrupt.err.find("pattern"), std::string::npos) << corrupt.err;
+  EXPECT_EQ(Lines(corrupt.err), 1) << corrupt.err;
+
+  const std::string svg = WriteJob("empty.svg", "<svg xmlns=\"http://www.w3.org/2000/svg\"></svg>");
+  const CliRun empty = Insitu(
+      "run " + MarkJobWith("m2.yaml", "  kind: svg\n  file: " + svg + "\n") + " --out /tmp/insitu_cli");
+  EXPECT_EQ(empty.exit_code, 2);
+  EXPECT_NE(empty.err.find("empty.svg"), std::string::npos) << empty.err;
+
+  const CliRun mapping = Insitu("run " + MarkJobWith("m3.yaml", "  kind: qr\n  data: x\n",
+                                                     "placement: {mapping: bend}\n") +
+                                " --out /tmp/insitu_cli");
+  EXPECT_EQ(mapping.exit_code, 2);
+  EXPECT_NE(mapping.err.find("mapping"), std::string::npos) << mapping.err;
+
+  const std::string items = WriteJob("items.yaml",
+      "job: mark\nmachine: {backend: sim, calibration: " + std::string(INSITU_SOURCE_DIR) +
+                            "/calib/as_designed.yaml}\nworld: " + std::string(INSITU_SOURCE_DIR) +
+      "/config/worlds/default.yaml\nitems: [{pattern: {kind: qr, data: x}, hatch: {spacing_mm: -1}}]\n");
+  const CliRun item = Insitu("run " + items + " --out /tmp/insitu_cli");
+  EXPECT_EQ(item.exit_code, 2);
+  EXPECT_NE(item.err.find("spacing_mm"), std::string::npos) << item.err;
+}
+
+}  // namespace
