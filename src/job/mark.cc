@@ -10,6 +10,7 @@
 #include "insitu/core/log.h"
 #include "insitu/geometry/surface.h"
 #include "insitu/pattern/codes.h"
+#include "insitu/pattern/correction_table.h"
 #include "insitu/pattern/galvo_list.h"
 #include "insitu/pattern/mark_plan.h"
 #include "insitu/pattern/path_opt.h"
@@ -62,6 +63,7 @@ struct MarkJobSpec {
   pattern::MarkSettings laser;
   pattern::HeadFormat head;
   bool head_field_set = false, head_focus_set = false;  // else taken from the scan head
+  std::string correction_file;  // field correction table (resolved), empty: none
   VerifyOptions verify;
   double spot_diameter_mm = 0.04;  // the marking beam's 1/e^2 diameter at focus (lens data)
 };
@@ -170,6 +172,8 @@ void ReadMarkSections(ConfigReader& r, const std::string& folder, MarkJobSpec* s
   s->head_focus_set = hd.Has("focus_half_range_mm");
   hd.Read("field_half_size_mm", &s->head.field_half_size_mm);
   hd.Read("focus_half_range_mm", &s->head.focus_half_range_mm);
+  hd.Read("correction", &s->correction_file);
+  if (!s->correction_file.empty()) s->correction_file = ResolvePath(folder, s->correction_file);
   if (hd.ok()) hd.FailFromValidate(s->head.Validate());
   ConfigReader& v = r.Section("verify");
   VerifyOptions& vo = s->verify;
@@ -251,16 +255,18 @@ Result<std::vector<pattern::Segment2>> PatternSegments(const ItemSpec& s, PathSt
   return out;
 }
 
-// The list's moves and settings for the scan head.
-hw::GalvoList ToHeadList(const std::vector<pattern::ListCommand>& list) {
+// The list's moves (field-corrected, as Emit sends them) and settings for the scan head.
+hw::GalvoList ToHeadList(const std::vector<pattern::ListCommand>& list,
+                         const pattern::FieldCorrection& correction) {
   hw::GalvoList out;
+  const auto corrected = [&](const Eigen::Vector3d& p) { return correction ? correction(p) : p; };
   for (const pattern::ListCommand& c : list) {
     switch (c.op) {
       case pattern::ListOp::kJumpAbs:
-        out.entries.push_back({hw::GalvoListEntry::Kind::kJump, c.p});
+        out.entries.push_back({hw::GalvoListEntry::Kind::kJump, corrected(c.p)});
         break;
       case pattern::ListOp::kMarkAbs:
-        out.entries.push_back({hw::GalvoListEntry::Kind::kMark, c.p});
+        out.entries.push_back({hw::GalvoListEntry::Kind::kMark, corrected(c.p)});
         break;
       case pattern::ListOp::kSetJumpSpeed: out.jump_speed_mm_per_s = c.a; break;
       case pattern::ListOp::kSetMarkSpeed: out.mark_speed_mm_per_s = c.a; break;
@@ -323,6 +329,12 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
     }
     placed_items.push_back(pattern::Place(*segments, mark.items[i].placement));
     placed.insert(placed.end(), placed_items.back().begin(), placed_items.back().end());
+  }
+  pattern::FieldCorrection correction;
+  if (!mark.correction_file.empty()) {
+    auto table = pattern::CorrectionTable::Load(mark.correction_file);
+    if (!table.ok()) return table.status().Prefixed(job.path + ": head.correction");
+    correction = table->AsFieldCorrection();
   }
   INSITU_ASSIGN_OR_RETURN(ScanMachine up, BringUp(job, spec, machine_config));
   {
@@ -418,7 +430,7 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
   }
 
   // 3. The list in head units, every point checked against the field and the focus range.
-  auto emitted = pattern::Emit(*list, mark.head);
+  auto emitted = pattern::Emit(*list, mark.head, correction);
   if (!emitted.ok()) return finish(false, "galvo list: " + emitted.status().ToString());
   {
     std::ofstream f(dir / "galvo_list.txt");
@@ -443,7 +455,7 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
     ArmGuard guard{up.machine.scanner.get()};
     log->info("mark: {} marks, {:.1f} mm, ~{:.1f} s", plan.marks, plan.marked_length_mm,
               report.metrics["list_duration_s"]);
-    const Status ran = up.machine.scanner->ExecuteList(ToHeadList(*list));
+    const Status ran = up.machine.scanner->ExecuteList(ToHeadList(*list, correction));
     if (!ran.ok()) return finish(false, "marking: " + ran.ToString());
   }
   log->info("mark: done");
