@@ -29,6 +29,7 @@ struct PatternSpec {
   double pixel_mm = 0.05;  // raster pixel or code module
   int threshold = 128;
   bool invert = false;
+  bool dither = false;  // raster: grey as a density of marked pixels
   std::string qr_level = "M";
 };
 
@@ -85,6 +86,7 @@ void ReadItem(ConfigReader& r, const std::string& folder, ItemSpec* s) {
   }
   p.Read("threshold", &s->pattern.threshold);
   p.Read("invert", &s->pattern.invert);
+  if (s->pattern.kind == "raster") p.Read("dither", &s->pattern.dither);
   p.ReadEnum("error_correction", &s->pattern.qr_level, {"L", "M", "Q", "H"});
   if (p.ok() && !(s->pattern.pixel_mm > 0)) {
     p.Fail(s->pattern.kind == "raster" ? "pixel_mm" : "module_mm", "must be > 0");
@@ -207,7 +209,7 @@ Result<std::vector<pattern::Segment2>> PatternSegments(const ItemSpec& s, PathSt
     return Status::Ok();
   };
   if (p.kind == "raster") {
-    INSITU_ASSIGN_OR_RETURN(auto mask, pattern::LoadRasterMask(p.file, p.threshold, p.invert));
+    INSITU_ASSIGN_OR_RETURN(auto mask, pattern::LoadRasterMask(p.file, p.threshold, p.invert, p.dither));
     INSITU_RETURN_IF_ERROR(hatch_mask(mask));
   } else if (p.kind == "qr") {
     INSITU_ASSIGN_OR_RETURN(auto mask, pattern::QrCodeMask(p.data, p.qr_level[0]));

@@ -12,7 +12,7 @@
 
 namespace insitu::pattern {
 
-Result<Mask> LoadRasterMask(const std::string& path, int threshold, bool invert) {
+Result<Mask> LoadRasterMask(const std::string& path, int threshold, bool invert, bool dither) {
   if (!std::filesystem::exists(path)) return NotFound(path + ": no such pattern image");
   if (threshold < 0 || threshold > 255) {
     return InvalidArgument("threshold must be in 0..255, got " + std::to_string(threshold));
@@ -25,13 +25,39 @@ Result<Mask> LoadRasterMask(const std::string& path, int threshold, bool invert)
   m.height = img.rows;
   m.on.resize(static_cast<size_t>(m.width) * m.height);
   size_t count = 0;
-  for (int v = 0; v < m.height; ++v) {
-    const uint8_t* row = img.ptr<uint8_t>(v);
-    for (int u = 0; u < m.width; ++u) {
-      const bool dark = row[u] < threshold;
-      const bool mark = invert ? !dark : dark;
-      m.on[static_cast<size_t>(v) * m.width + u] = mark;
-      count += mark;
+  if (dither) {
+    // Ink (0 = none, 255 = full) diffused Floyd-Steinberg: 7/16 ahead, 3/16, 5/16, 1/16 below;
+    // rows alternate direction so the error does not stream to one side.
+    cv::Mat ink;
+    img.convertTo(ink, CV_32F);
+    if (!invert) ink = 255.0f - ink;
+    for (int v = 0; v < m.height; ++v) {
+      const bool ltr = v % 2 == 0;
+      float* row = ink.ptr<float>(v);
+      float* below = v + 1 < m.height ? ink.ptr<float>(v + 1) : nullptr;
+      for (int k = 0; k < m.width; ++k) {
+        const int u = ltr ? k : m.width - 1 - k, ahead = ltr ? u + 1 : u - 1, back = ltr ? u - 1 : u + 1;
+        const bool mark = row[u] >= 255.0f - static_cast<float>(threshold);
+        const float err = row[u] - (mark ? 255.0f : 0.0f);
+        m.on[static_cast<size_t>(v) * m.width + u] = mark;
+        count += mark;
+        if (ahead >= 0 && ahead < m.width) row[ahead] += err * 7.0f / 16.0f;
+        if (below) {
+          if (back >= 0 && back < m.width) below[back] += err * 3.0f / 16.0f;
+          below[u] += err * 5.0f / 16.0f;
+          if (ahead >= 0 && ahead < m.width) below[ahead] += err * 1.0f / 16.0f;
+        }
+      }
+    }
+  } else {
+    for (int v = 0; v < m.height; ++v) {
+      const uint8_t* row = img.ptr<uint8_t>(v);
+      for (int u = 0; u < m.width; ++u) {
+        const bool dark = row[u] < threshold;
+        const bool mark = invert ? !dark : dark;
+        m.on[static_cast<size_t>(v) * m.width + u] = mark;
+        count += mark;
+      }
     }
   }
   if (count == 0) return InvalidArgument(path + ": no pixel to mark at threshold " + std::to_string(threshold));

@@ -47,6 +47,28 @@ TEST(Raster, ImageToMaskAndBadImages) {
   EXPECT_NE(none.status().message().find("no pixel to mark"), std::string::npos);
 }
 
+TEST(Raster, DitheredGreyKeepsItsDensity) {
+  const fs::path dir = fs::temp_directory_path() / "insitu_raster_test";
+  fs::create_directories(dir);
+  // A grey ramp: column band b (20 px wide) at grey 255 * b / 10, 200 rows.
+  cv::Mat img(200, 220, CV_8UC1);
+  for (int u = 0; u < img.cols; ++u) img.col(u).setTo(std::min(255, 255 * (u / 20) / 10));
+  ASSERT_TRUE(cv::imwrite((dir / "ramp.png").string(), img));
+  auto m = LoadRasterMask((dir / "ramp.png").string(), 128, false, true);
+  ASSERT_TRUE(m.ok()) << m.status().ToString();
+  for (int b = 0; b <= 10; ++b) {
+    int on = 0;
+    for (int v = 0; v < 200; ++v) {
+      for (int u = 20 * b + 2; u < 20 * b + 18; ++u) on += m->at(u, v);  // away from band edges
+    }
+    // Error diffusion keeps the mean ink: the marked fraction of a band is its ink to within
+    // the error carried across the band's edges and rows (at most one pixel's worth per row:
+    // 1/16 of 3200 pixels).
+    const double ink = 1.0 - std::min(255, 255 * b / 10) / 255.0;
+    EXPECT_NEAR(on / 3200.0, ink, 1.0 / 16.0) << "band " << b;
+  }
+}
+
 // A 1 mm square (100 px of 10 um) hatched every 40 um: the lines through |k * 0.04| < 0.5 mm,
 // i.e. k = -12..12, each 1 mm long to within the quarter-pixel sampling (ends within 1/8 px
 // = 1.25 um).

@@ -24,9 +24,13 @@ struct Mask {
 };
 
 // Grey image (PNG, BMP, anything OpenCV reads; colour is converted) to a mask: dark pixels
-// (below `threshold`, 0..255 on the 8-bit scale) mark, or light ones with `invert`. Errors:
-// not_found (no file), invalid_argument (not an image, empty, nothing to mark).
-Result<Mask> LoadRasterMask(const std::string& path, int threshold = 128, bool invert = false);
+// (below `threshold`, 0..255 on the 8-bit scale) mark, or light ones with `invert`. With
+// `dither`, grey levels become a density of marked pixels instead (Floyd-Steinberg error
+// diffusion against `threshold`, serpentine rows): a pixel of grey g marks with probability
+// ~(255 - g) / 255, so shading survives on a two-level process. Errors: not_found (no file),
+// invalid_argument (not an image, empty, nothing to mark).
+Result<Mask> LoadRasterMask(const std::string& path, int threshold = 128, bool invert = false,
+                            bool dither = false);
 
 struct Segment2 {
   Eigen::Vector2d a = Eigen::Vector2d::Zero();
