@@ -1,8 +1,9 @@
-// How deep the marking laser has ablated the surface, over the world xy plane: what the cameras
-// see of the marks. Each pulse removes delta ln(F(r) / F_th) where its fluence exceeds the
-// threshold (the logarithmic ablation law); for a Gaussian pulse of 1/e^2 radius w and crater
-// radius R that is the paraboloid 2 delta (R^2 - r^2) / w^2. Stored sparsely in square tiles
-// of 4 um cells, so marks anywhere in the field cost memory only where they are.
+// How deep the marking laser has ablated the surface, over the world xy plane:
+// what the cameras see of the marks. Each pulse removes delta ln(F(r) / F_th)
+// where its fluence exceeds the threshold (the logarithmic ablation law); for a
+// Gaussian pulse of 1/e^2 radius w and crater radius R that is the paraboloid 2
+// delta (R^2 - r^2) / w^2. Stored sparsely in square tiles of 4 um cells, so
+// marks anywhere in the field cost memory only where they are.
 #pragma once
 
 #include <cstdint>
@@ -12,25 +13,29 @@
 namespace insitu::sim {
 
 class MarkMap {
- public:
+public:
   static constexpr double kCellMm = 0.004;
 
-  // Adds one crater at (x, y) mm: radius_mm (0: nothing), beam radius w_mm, depth_um = delta.
-  void AddCrater(double x_mm, double y_mm, double radius_mm, double w_mm, double delta_um);
+  // Adds one crater at (x, y) mm: radius_mm (0: nothing), beam radius w_mm,
+  // depth_um = delta.
+  void AddCrater(double x_mm, double y_mm, double radius_mm, double w_mm,
+                 double delta_um);
   // Ablated depth at (x, y), um, bilinear between cells.
   double DepthUm(double x_mm, double y_mm) const;
   bool empty() const { return tiles_.empty(); }
   // Bounding box of everything marked (mm); false if nothing is.
-  bool Bounds(double* x0, double* y0, double* x1, double* y1) const;
+  bool Bounds(double *x0, double *y0, double *x1, double *y1) const;
 
- private:
-  static constexpr int kTile = 128;  // cells per tile side (0.512 mm)
-  static int64_t Key(int64_t tx, int64_t ty) { return (tx << 32) ^ (ty & 0xffffffff); }
+private:
+  static constexpr int kTile = 128; // cells per tile side (0.512 mm)
+  static int64_t Key(int64_t tx, int64_t ty) {
+    return (tx << 32) ^ (ty & 0xffffffff);
+  }
   float Cell(int64_t i, int64_t j) const;
-  float& CellRef(int64_t i, int64_t j);
+  float &CellRef(int64_t i, int64_t j);
 
   std::unordered_map<int64_t, std::vector<float>> tiles_;
   int64_t min_i_ = 0, min_j_ = 0, max_i_ = -1, max_j_ = -1;
 };
 
-}  // namespace insitu::sim
+} // namespace insitu::sim

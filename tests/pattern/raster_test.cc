@@ -1,4 +1,5 @@
-// Raster patterns: image to mask, hatch lines at a spacing and angle, placement on the part.
+// Raster patterns: image to mask, hatch lines at a spacing and angle, placement
+// on the part.
 #include "insitu/pattern/raster.h"
 
 #include <cmath>
@@ -36,7 +37,8 @@ TEST(Raster, ImageToMaskAndBadImages) {
   ASSERT_TRUE(inv.ok());
   EXPECT_EQ(std::count(inv->on.begin(), inv->on.end(), 1), 6000 - 800);
 
-  EXPECT_EQ(LoadRasterMask((dir / "missing.png").string()).status().code(), StatusCode::kNotFound);
+  EXPECT_EQ(LoadRasterMask((dir / "missing.png").string()).status().code(),
+            StatusCode::kNotFound);
   std::ofstream(dir / "text.png") << "not an image";
   EXPECT_EQ(LoadRasterMask((dir / "text.png").string()).status().code(),
             StatusCode::kInvalidArgument);
@@ -44,7 +46,8 @@ TEST(Raster, ImageToMaskAndBadImages) {
   ASSERT_TRUE(cv::imwrite((dir / "white.png").string(), white));
   const auto none = LoadRasterMask((dir / "white.png").string());
   ASSERT_FALSE(none.ok());
-  EXPECT_NE(none.status().message().find("no pixel to mark"), std::string::npos);
+  EXPECT_NE(none.status().message().find("no pixel to mark"),
+            std::string::npos);
 }
 
 TEST(Raster, DitheredGreyKeepsItsDensity) {
@@ -52,46 +55,51 @@ TEST(Raster, DitheredGreyKeepsItsDensity) {
   fs::create_directories(dir);
   // A grey ramp: column band b (20 px wide) at grey 255 * b / 10, 200 rows.
   cv::Mat img(200, 220, CV_8UC1);
-  for (int u = 0; u < img.cols; ++u) img.col(u).setTo(std::min(255, 255 * (u / 20) / 10));
+  for (int u = 0; u < img.cols; ++u)
+    img.col(u).setTo(std::min(255, 255 * (u / 20) / 10));
   ASSERT_TRUE(cv::imwrite((dir / "ramp.png").string(), img));
   auto m = LoadRasterMask((dir / "ramp.png").string(), 128, false, true);
   ASSERT_TRUE(m.ok()) << m.status().ToString();
   for (int b = 0; b <= 10; ++b) {
     int on = 0;
     for (int v = 0; v < 200; ++v) {
-      for (int u = 20 * b + 2; u < 20 * b + 18; ++u) on += m->at(u, v);  // away from band edges
+      for (int u = 20 * b + 2; u < 20 * b + 18; ++u)
+        on += m->at(u, v); // away from band edges
     }
-    // Error diffusion keeps the mean ink: the marked fraction of a band is its ink to within
-    // the error carried across the band's edges and rows (at most one pixel's worth per row:
-    // 1/16 of 3200 pixels).
+    // Error diffusion keeps the mean ink: the marked fraction of a band is its
+    // ink to within the error carried across the band's edges and rows (at most
+    // one pixel's worth per row: 1/16 of 3200 pixels).
     const double ink = 1.0 - std::min(255, 255 * b / 10) / 255.0;
     EXPECT_NEAR(on / 3200.0, ink, 1.0 / 16.0) << "band " << b;
   }
 }
 
-// A 1 mm square (100 px of 10 um) hatched every 40 um: the lines through |k * 0.04| < 0.5 mm,
-// i.e. k = -12..12, each 1 mm long to within the quarter-pixel sampling (ends within 1/8 px
-// = 1.25 um).
+// A 1 mm square (100 px of 10 um) hatched every 40 um: the lines through |k *
+// 0.04| < 0.5 mm, i.e. k = -12..12, each 1 mm long to within the quarter-pixel
+// sampling (ends within 1/8 px = 1.25 um).
 TEST(Raster, HatchLinesFillTheSquareAtTheSpacing) {
   const Mask m = Full(100, 100);
   for (double angle : {0.0, 90.0}) {
     auto lines = HatchMask(m, 0.01, 0.04, angle);
     ASSERT_TRUE(lines.ok());
     ASSERT_EQ(lines->size(), 25u) << angle;
-    for (const Segment2& s : *lines) EXPECT_NEAR((s.b - s.a).norm(), 1.0, 0.0026) << angle;
+    for (const Segment2 &s : *lines)
+      EXPECT_NEAR((s.b - s.a).norm(), 1.0, 0.0026) << angle;
     // Neighbouring lines 40 um apart, running in opposite directions.
-    const Segment2& l0 = (*lines)[0];
-    const Segment2& l1 = (*lines)[1];
+    const Segment2 &l0 = (*lines)[0];
+    const Segment2 &l1 = (*lines)[1];
     const Eigen::Vector2d d = (l0.b - l0.a).normalized();
     const Eigen::Vector2d n(-d.y(), d.x());
     EXPECT_NEAR(std::abs(n.dot(l1.a - l0.a)), 0.04, 1e-9);
     EXPECT_LT((l1.b - l1.a).dot(l0.b - l0.a), 0.0);
   }
-  // At 45 degrees the hatch length is still area / spacing (25 mm), up to the ends.
+  // At 45 degrees the hatch length is still area / spacing (25 mm), up to the
+  // ends.
   auto diag = HatchMask(m, 0.01, 0.04, 45.0);
   ASSERT_TRUE(diag.ok());
   double total = 0;
-  for (const Segment2& s : *diag) total += (s.b - s.a).norm();
+  for (const Segment2 &s : *diag)
+    total += (s.b - s.a).norm();
   EXPECT_NEAR(total, 25.0, 0.1);
   EXPECT_FALSE(HatchMask(m, 0.01, 0.0, 0.0).ok());
   EXPECT_FALSE(HatchMask(m, -1.0, 0.04, 0.0).ok());
@@ -110,5 +118,5 @@ TEST(Raster, PlacementScalesRotatesThenMoves) {
   EXPECT_NEAR((placed[0].b - placed[0].a).norm(), 2.0, 1e-12);
 }
 
-}  // namespace
-}  // namespace insitu::pattern
+} // namespace
+} // namespace insitu::pattern

@@ -1,12 +1,14 @@
-// A field correction table for the galvo list (seed 003 sec. 2.1: the correction applies to
-// every emitted point): on a regular grid of commanded galvo points, the offset to add so the
-// spot lands where it was asked for. Between nodes the offset is bilinear; beyond the grid it
-// is the nearest edge's (the field check after correction still refuses what leaves the head's
+// A field correction table for the galvo list (seed 003 sec. 2.1: the
+// correction applies to every emitted point): on a regular grid of commanded
+// galvo points, the offset to add so the spot lands where it was asked for.
+// Between nodes the offset is bilinear; beyond the grid it is the nearest
+// edge's (the field check after correction still refuses what leaves the head's
 // range). Galvo frame, mm; z passes unchanged.
 //
-// File (CSV): a header row naming x_mm, y_mm, dx_mm, dy_mm (any order; other columns are
-// ignored), then one row per grid node; `#` lines are comments. Every combination of the
-// distinct x and y values must appear exactly once (at least 2 x 2).
+// File (CSV): a header row naming x_mm, y_mm, dx_mm, dy_mm (any order; other
+// columns are ignored), then one row per grid node; `#` lines are comments.
+// Every combination of the distinct x and y values must appear exactly once (at
+// least 2 x 2).
 #pragma once
 
 #include <string>
@@ -20,11 +22,13 @@
 namespace insitu::pattern {
 
 class CorrectionTable {
- public:
-  // Errors (parse_error / invalid_argument) name the file, the line and the column: missing
-  // columns, duplicate headers, non-numbers, NaN, a node twice or missing, fewer than 2 x 2.
-  static Result<CorrectionTable> Parse(const std::string& text, const std::string& origin);
-  static Result<CorrectionTable> Load(const std::string& path);
+public:
+  // Errors (parse_error / invalid_argument) name the file, the line and the
+  // column: missing columns, duplicate headers, non-numbers, NaN, a node twice
+  // or missing, fewer than 2 x 2.
+  static Result<CorrectionTable> Parse(const std::string &text,
+                                       const std::string &origin);
+  static Result<CorrectionTable> Load(const std::string &path);
 
   Eigen::Vector2d OffsetAt(double x_mm, double y_mm) const;
   // As a FieldCorrection for Emit().
@@ -33,9 +37,9 @@ class CorrectionTable {
   int nodes_x() const { return static_cast<int>(xs_.size()); }
   int nodes_y() const { return static_cast<int>(ys_.size()); }
 
- private:
-  std::vector<double> xs_, ys_;           // ascending
-  std::vector<Eigen::Vector2d> offset_;   // row-major: y index * nx + x index
+private:
+  std::vector<double> xs_, ys_;         // ascending
+  std::vector<Eigen::Vector2d> offset_; // row-major: y index * nx + x index
 };
 
-}  // namespace insitu::pattern
+} // namespace insitu::pattern
