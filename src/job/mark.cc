@@ -23,13 +23,13 @@ namespace insitu::job {
 namespace {
 
 struct PatternSpec {
-  std::string kind;       // raster, qr, datamatrix, hpgl, svg, dxf
-  std::string file;       // raster, hpgl, svg, dxf (resolved)
-  std::string data;       // qr, datamatrix
-  double pixel_mm = 0.05; // raster pixel or code module
+  std::string kind;        // raster, qr, datamatrix, hpgl, svg, dxf
+  std::string file;        // raster, hpgl, svg, dxf (resolved)
+  std::string data;        // qr, datamatrix
+  double pixel_mm = 0.05;  // raster pixel or code module
   int threshold = 128;
   bool invert = false;
-  bool dither = false; // raster: grey as a density of marked pixels
+  bool dither = false;  // raster: grey as a density of marked pixels
   std::string qr_level = "M";
 };
 
@@ -39,7 +39,7 @@ struct ItemSpec {
   pattern::Placement placement;
   double hatch_spacing_mm = 0.04;
   std::vector<double> hatch_angles_deg{0.0};
-  bool outline = true; // vector patterns: mark the paths too
+  bool outline = true;  // vector patterns: mark the paths too
   // Which point of the pattern the placement's offset puts on the part: the
   // file's origin (vector files) or the centre of its bounding box. Codes and
   // rasters are always centred.
@@ -51,8 +51,7 @@ struct ItemSpec {
   // on the part.
   bool optimise_paths = true;
   double path_max_error_mm = 0.002;
-  std::string path_placement =
-      "band"; // band: chords straddle the curve; curve: on it
+  std::string path_placement = "band";  // band: chords straddle the curve; curve: on it
 };
 
 // What path optimisation did to an item's outlines.
@@ -60,7 +59,7 @@ struct PathStats {
   int input_points = 0, mark_points = 0;
   double max_error_mm = 0.0;
   double jump_mm = 0.0,
-         jump_file_mm = 0.0; // outline jumps in travel and file order
+         jump_file_mm = 0.0;  // outline jumps in travel and file order
 };
 
 struct MarkJobSpec {
@@ -69,68 +68,56 @@ struct MarkJobSpec {
   pattern::MarkSettings laser;
   pattern::HeadFormat head;
   bool head_field_set = false,
-       head_focus_set = false; // else taken from the scan head
-  std::string correction_file; // field correction table (resolved), empty: none
+       head_focus_set = false;  // else taken from the scan head
+  std::string correction_file;  // field correction table (resolved), empty: none
   VerifyOptions verify;
-  double spot_diameter_mm =
-      0.04; // the marking beam's 1/e^2 diameter at focus (lens data)
+  double spot_diameter_mm = 0.04;  // the marking beam's 1/e^2 diameter at focus (lens data)
 };
 
 // pattern, placement and hatch of one item, from `r` (the job's root or an
 // element of items).
-void ReadItem(ConfigReader &r, const std::string &folder, ItemSpec *s) {
-  ConfigReader &p = r.Section("pattern");
+void ReadItem(ConfigReader& r, const std::string& folder, ItemSpec* s) {
+  ConfigReader& p = r.Section("pattern");
   p.Require("kind");
-  p.ReadEnum("kind", &s->pattern.kind,
-             {"raster", "qr", "datamatrix", "hpgl", "svg", "dxf"});
-  const bool from_file = s->pattern.kind == "raster" ||
-                         s->pattern.kind == "hpgl" ||
+  p.ReadEnum("kind", &s->pattern.kind, {"raster", "qr", "datamatrix", "hpgl", "svg", "dxf"});
+  const bool from_file = s->pattern.kind == "raster" || s->pattern.kind == "hpgl" ||
                          s->pattern.kind == "svg" || s->pattern.kind == "dxf";
-  if (p.ok())
-    p.Require(from_file ? "file" : "data");
+  if (p.ok()) p.Require(from_file ? "file" : "data");
   p.Read("file", &s->pattern.file);
-  if (!s->pattern.file.empty())
-    s->pattern.file = ResolvePath(folder, s->pattern.file);
+  if (!s->pattern.file.empty()) s->pattern.file = ResolvePath(folder, s->pattern.file);
   p.Read("data", &s->pattern.data);
   if (!from_file || s->pattern.kind == "raster") {
-    p.Read(s->pattern.kind == "raster" ? "pixel_mm" : "module_mm",
-           &s->pattern.pixel_mm);
+    p.Read(s->pattern.kind == "raster" ? "pixel_mm" : "module_mm", &s->pattern.pixel_mm);
   }
   p.Read("threshold", &s->pattern.threshold);
   p.Read("invert", &s->pattern.invert);
-  if (s->pattern.kind == "raster")
-    p.Read("dither", &s->pattern.dither);
+  if (s->pattern.kind == "raster") p.Read("dither", &s->pattern.dither);
   p.ReadEnum("error_correction", &s->pattern.qr_level, {"L", "M", "Q", "H"});
   if (p.ok() && !(s->pattern.pixel_mm > 0)) {
-    p.Fail(s->pattern.kind == "raster" ? "pixel_mm" : "module_mm",
-           "must be > 0");
+    p.Fail(s->pattern.kind == "raster" ? "pixel_mm" : "module_mm", "must be > 0");
   }
-  ConfigReader &pl = r.Section("placement");
+  ConfigReader& pl = r.Section("placement");
   pl.Read("scale", &s->placement.scale);
   pl.Read("rotation_deg", &s->placement.rotation_deg);
   pl.ReadArray("offset_mm", s->placement.offset_mm.data(), 2);
   pl.ReadEnum("anchor", &s->anchor, {"origin", "centre"});
   pl.ReadEnum("mapping", &s->mapping, {"project", "wrap"});
-  if (pl.ok() && !(s->placement.scale > 0))
-    pl.Fail("scale", "must be > 0");
-  ConfigReader &h = r.Section("hatch");
+  if (pl.ok() && !(s->placement.scale > 0)) pl.Fail("scale", "must be > 0");
+  ConfigReader& h = r.Section("hatch");
   h.Read("spacing_mm", &s->hatch_spacing_mm);
   h.Read("angles_deg", &s->hatch_angles_deg);
   h.Read("outline", &s->outline);
-  if (h.ok() && !(s->hatch_spacing_mm > 0))
-    h.Fail("spacing_mm", "must be > 0");
+  if (h.ok() && !(s->hatch_spacing_mm > 0)) h.Fail("spacing_mm", "must be > 0");
 }
 
-void ReadMarkSections(ConfigReader &r, const std::string &folder,
-                      MarkJobSpec *s) {
+void ReadMarkSections(ConfigReader& r, const std::string& folder, MarkJobSpec* s) {
   if (r.Has("items")) {
     // Several patterns marked from one scan: a list of {pattern, placement,
     // hatch}.
     r.Skip("items");
     const ConfigNode items = r.node().Child("items");
     if (!items.IsSequence() || items.size() == 0) {
-      r.Fail("items",
-             "must be a non-empty list of {pattern, placement, hatch}");
+      r.Fail("items", "must be a non-empty list of {pattern, placement, hatch}");
       return;
     }
     for (size_t i = 0; i < items.size(); ++i) {
@@ -153,30 +140,26 @@ void ReadMarkSections(ConfigReader &r, const std::string &folder,
     ReadItem(r, folder, &s->items.back());
   }
   // Path optimisation of vector outlines: one setting for every item.
-  ConfigReader &po = r.Section("path");
+  ConfigReader& po = r.Section("path");
   ItemSpec defaults;
   po.Read("optimise", &defaults.optimise_paths);
   po.Read("max_error_mm", &defaults.path_max_error_mm);
   po.ReadEnum("placement", &defaults.path_placement, {"band", "curve"});
-  if (po.ok() && !(defaults.path_max_error_mm > 0))
-    po.Fail("max_error_mm", "must be > 0");
-  for (ItemSpec &item : s->items) {
+  if (po.ok() && !(defaults.path_max_error_mm > 0)) po.Fail("max_error_mm", "must be > 0");
+  for (ItemSpec& item : s->items) {
     item.optimise_paths = defaults.optimise_paths;
     item.path_max_error_mm = defaults.path_max_error_mm;
     item.path_placement = defaults.path_placement;
   }
-  ConfigReader &su = r.Section("surface");
+  ConfigReader& su = r.Section("surface");
   su.Read("radius_mm", &s->surface.radius_mm);
   su.Read("min_points", &s->surface.min_points);
   su.Read("max_residual_mm", &s->surface.max_residual_mm);
-  if (su.ok() && !(s->surface.radius_mm > 0))
-    su.Fail("radius_mm", "must be > 0");
-  if (su.ok() && s->surface.min_points < 3)
-    su.Fail("min_points", "must be >= 3");
-  if (su.ok() && !(s->surface.max_residual_mm > 0))
-    su.Fail("max_residual_mm", "must be > 0");
-  ConfigReader &l = r.Section("laser");
-  pattern::MarkSettings &m = s->laser;
+  if (su.ok() && !(s->surface.radius_mm > 0)) su.Fail("radius_mm", "must be > 0");
+  if (su.ok() && s->surface.min_points < 3) su.Fail("min_points", "must be >= 3");
+  if (su.ok() && !(s->surface.max_residual_mm > 0)) su.Fail("max_residual_mm", "must be > 0");
+  ConfigReader& l = r.Section("laser");
+  pattern::MarkSettings& m = s->laser;
   l.Read("jump_speed_mm_per_s", &m.jump_speed_mm_per_s);
   l.Read("mark_speed_mm_per_s", &m.mark_speed_mm_per_s);
   l.Read("power", &m.laser_power);
@@ -189,23 +172,19 @@ void ReadMarkSections(ConfigReader &r, const std::string &folder,
   l.Read("max_step_mm", &m.max_step_mm);
   l.Read("focus_offset_mm", &m.focus_offset_mm);
   l.Read("spot_diameter_mm", &s->spot_diameter_mm);
-  if (l.ok() && !(s->spot_diameter_mm > 0))
-    l.Fail("spot_diameter_mm", "must be > 0");
-  if (l.ok())
-    l.FailFromValidate(m.Validate());
-  ConfigReader &hd = r.Section("head");
+  if (l.ok() && !(s->spot_diameter_mm > 0)) l.Fail("spot_diameter_mm", "must be > 0");
+  if (l.ok()) l.FailFromValidate(m.Validate());
+  ConfigReader& hd = r.Section("head");
   hd.Read("bits", &s->head.bits);
   s->head_field_set = hd.Has("field_half_size_mm");
   s->head_focus_set = hd.Has("focus_half_range_mm");
   hd.Read("field_half_size_mm", &s->head.field_half_size_mm);
   hd.Read("focus_half_range_mm", &s->head.focus_half_range_mm);
   hd.Read("correction", &s->correction_file);
-  if (!s->correction_file.empty())
-    s->correction_file = ResolvePath(folder, s->correction_file);
-  if (hd.ok())
-    hd.FailFromValidate(s->head.Validate());
-  ConfigReader &v = r.Section("verify");
-  VerifyOptions &vo = s->verify;
+  if (!s->correction_file.empty()) s->correction_file = ResolvePath(folder, s->correction_file);
+  if (hd.ok()) hd.FailFromValidate(s->head.Validate());
+  ConfigReader& v = r.Section("verify");
+  VerifyOptions& vo = s->verify;
   v.Read("enabled", &vo.enabled);
   v.Read("coaxial_pixel_um", &vo.coaxial_pixel_um);
   v.Read("coaxial_rotation_deg", &vo.coaxial_rotation_deg);
@@ -215,53 +194,45 @@ void ReadMarkSections(ConfigReader &r, const std::string &folder,
   v.Read("focus_sweep_mm", &vo.focus_sweep_mm);
   v.Read("focus_step_mm", &vo.focus_step_mm);
   v.Read("side_target_level", &vo.side_target_level);
-  if (v.ok())
-    v.FailFromValidate(vo.Validate());
+  if (v.ok()) v.FailFromValidate(vo.Validate());
 }
 
 // The pattern's segments in pattern mm (before placement).
 // Vector outlines go through path optimisation (seed 004) and into travel
 // order; *stats says what that did.
-Result<std::vector<pattern::Segment2>> PatternSegments(const ItemSpec &s,
-                                                       PathStats *stats) {
+Result<std::vector<pattern::Segment2>> PatternSegments(const ItemSpec& s, PathStats* stats) {
   *stats = PathStats{};
-  const PatternSpec &p = s.pattern;
+  const PatternSpec& p = s.pattern;
   std::vector<pattern::Segment2> out;
   // The spacing is asked for on the part: hatch in pattern units, before the
   // placement scales.
   const double spacing = s.hatch_spacing_mm / s.placement.scale;
-  auto hatch_mask = [&](const pattern::Mask &mask) -> Status {
+  auto hatch_mask = [&](const pattern::Mask& mask) -> Status {
     for (double angle : s.hatch_angles_deg) {
-      INSITU_ASSIGN_OR_RETURN(
-          auto lines, pattern::HatchMask(mask, p.pixel_mm, spacing, angle));
+      INSITU_ASSIGN_OR_RETURN(auto lines, pattern::HatchMask(mask, p.pixel_mm, spacing, angle));
       out.insert(out.end(), lines.begin(), lines.end());
     }
     return Status::Ok();
   };
   if (p.kind == "raster") {
-    INSITU_ASSIGN_OR_RETURN(
-        auto mask,
-        pattern::LoadRasterMask(p.file, p.threshold, p.invert, p.dither));
+    INSITU_ASSIGN_OR_RETURN(auto mask,
+                            pattern::LoadRasterMask(p.file, p.threshold, p.invert, p.dither));
     INSITU_RETURN_IF_ERROR(hatch_mask(mask));
   } else if (p.kind == "qr") {
-    INSITU_ASSIGN_OR_RETURN(auto mask,
-                            pattern::QrCodeMask(p.data, p.qr_level[0]));
+    INSITU_ASSIGN_OR_RETURN(auto mask, pattern::QrCodeMask(p.data, p.qr_level[0]));
     INSITU_RETURN_IF_ERROR(hatch_mask(mask));
   } else if (p.kind == "datamatrix") {
     INSITU_ASSIGN_OR_RETURN(auto mask, pattern::DataMatrixMask(p.data));
     INSITU_RETURN_IF_ERROR(hatch_mask(mask));
   } else {
-    INSITU_ASSIGN_OR_RETURN(auto vec, p.kind == "svg" ? pattern::LoadSvg(p.file)
-                                      : p.kind == "dxf"
-                                          ? pattern::LoadDxf(p.file)
-                                          : pattern::LoadHpgl(p.file));
+    INSITU_ASSIGN_OR_RETURN(auto vec, p.kind == "svg"   ? pattern::LoadSvg(p.file)
+                                      : p.kind == "dxf" ? pattern::LoadDxf(p.file)
+                                                        : pattern::LoadHpgl(p.file));
     bool closed = false;
-    for (const auto &path : vec.paths)
-      closed |= path.closed;
+    for (const auto& path : vec.paths) closed |= path.closed;
     if (closed) {
       for (double angle : s.hatch_angles_deg) {
-        INSITU_ASSIGN_OR_RETURN(auto lines,
-                                pattern::HatchPolygons(vec, spacing, angle));
+        INSITU_ASSIGN_OR_RETURN(auto lines, pattern::HatchPolygons(vec, spacing, angle));
         out.insert(out.end(), lines.begin(), lines.end());
       }
     }
@@ -270,30 +241,24 @@ Result<std::vector<pattern::Segment2>> PatternSegments(const ItemSpec &s,
         // The error is asked for on the part: the fit works in pattern units at
         // the placement's scale, and its mark points go back to pattern units
         // for Place().
-        pattern::PathOptOptions o = pattern::PathOptOptions::ForErrorBudget(
-            s.placement.scale, s.path_max_error_mm);
+        pattern::PathOptOptions o =
+            pattern::PathOptOptions::ForErrorBudget(s.placement.scale, s.path_max_error_mm);
         o.placement = s.path_placement == "band"
                           ? pattern::PathOptOptions::Placement::kToleranceBand
                           : pattern::PathOptOptions::Placement::kOnCurve;
-        for (pattern::Polyline &path : vec.paths) {
-          if (path.points.size() < 3)
-            continue;
+        for (pattern::Polyline& path : vec.paths) {
+          if (path.points.size() < 3) continue;
           stats->input_points += static_cast<int>(path.points.size());
           auto opt = pattern::OptimisePolyline(path, o);
-          if (!opt.ok())
-            return opt.status();
-          for (Eigen::Vector2d &q : opt->marks.points)
-            q /= s.placement.scale;
+          if (!opt.ok()) return opt.status();
+          for (Eigen::Vector2d& q : opt->marks.points) q /= s.placement.scale;
           path.points = std::move(opt->marks.points);
           stats->mark_points += static_cast<int>(path.points.size());
-          stats->max_error_mm =
-              std::max(stats->max_error_mm, opt->summary.max_error_mm);
+          stats->max_error_mm = std::max(stats->max_error_mm, opt->summary.max_error_mm);
         }
       }
-      const Eigen::Vector2d start =
-          out.empty() ? Eigen::Vector2d::Zero() : out.back().b;
-      stats->jump_mm =
-          pattern::OrderForTravel(&vec, start, &stats->jump_file_mm);
+      const Eigen::Vector2d start = out.empty() ? Eigen::Vector2d::Zero() : out.back().b;
+      stats->jump_mm = pattern::OrderForTravel(&vec, start, &stats->jump_file_mm);
       const auto outline = pattern::Outline(vec);
       out.insert(out.end(), outline.begin(), outline.end());
     }
@@ -303,42 +268,40 @@ Result<std::vector<pattern::Segment2>> PatternSegments(const ItemSpec &s,
 
 // The list's moves (field-corrected, as Emit sends them) and settings for the
 // scan head.
-hw::GalvoList ToHeadList(const std::vector<pattern::ListCommand> &list,
-                         const pattern::FieldCorrection &correction) {
+hw::GalvoList ToHeadList(const std::vector<pattern::ListCommand>& list,
+                         const pattern::FieldCorrection& correction) {
   hw::GalvoList out;
-  const auto corrected = [&](const Eigen::Vector3d &p) {
-    return correction ? correction(p) : p;
-  };
-  for (const pattern::ListCommand &c : list) {
+  const auto corrected = [&](const Eigen::Vector3d& p) { return correction ? correction(p) : p; };
+  for (const pattern::ListCommand& c : list) {
     switch (c.op) {
-    case pattern::ListOp::kJumpAbs:
-      out.entries.push_back({hw::GalvoListEntry::Kind::kJump, corrected(c.p)});
-      break;
-    case pattern::ListOp::kMarkAbs:
-      out.entries.push_back({hw::GalvoListEntry::Kind::kMark, corrected(c.p)});
-      break;
-    case pattern::ListOp::kSetJumpSpeed:
-      out.jump_speed_mm_per_s = c.a;
-      break;
-    case pattern::ListOp::kSetMarkSpeed:
-      out.mark_speed_mm_per_s = c.a;
-      break;
-    case pattern::ListOp::kSetLaserDelays:
-      out.laser_on_delay_us = std::max(0.0, c.a);
-      out.laser_off_delay_us = c.b;
-      break;
-    case pattern::ListOp::kSetScannerDelays:
-      out.jump_delay_us = c.a;
-      out.mark_delay_us = c.b;
-      break;
-    case pattern::ListOp::kSetLaserPower:
-      out.laser_power = c.a;
-      break;
-    case pattern::ListOp::kSetLaserFrequency:
-      out.laser_frequency_khz = c.a;
-      break;
-    case pattern::ListOp::kEndOfList:
-      break;
+      case pattern::ListOp::kJumpAbs:
+        out.entries.push_back({hw::GalvoListEntry::Kind::kJump, corrected(c.p)});
+        break;
+      case pattern::ListOp::kMarkAbs:
+        out.entries.push_back({hw::GalvoListEntry::Kind::kMark, corrected(c.p)});
+        break;
+      case pattern::ListOp::kSetJumpSpeed:
+        out.jump_speed_mm_per_s = c.a;
+        break;
+      case pattern::ListOp::kSetMarkSpeed:
+        out.mark_speed_mm_per_s = c.a;
+        break;
+      case pattern::ListOp::kSetLaserDelays:
+        out.laser_on_delay_us = std::max(0.0, c.a);
+        out.laser_off_delay_us = c.b;
+        break;
+      case pattern::ListOp::kSetScannerDelays:
+        out.jump_delay_us = c.a;
+        out.mark_delay_us = c.b;
+        break;
+      case pattern::ListOp::kSetLaserPower:
+        out.laser_power = c.a;
+        break;
+      case pattern::ListOp::kSetLaserFrequency:
+        out.laser_frequency_khz = c.a;
+        break;
+      case pattern::ListOp::kEndOfList:
+        break;
     }
   }
   return out;
@@ -346,30 +309,28 @@ hw::GalvoList ToHeadList(const std::vector<pattern::ListCommand> &list,
 
 // Disarms on every way out of the marking step.
 struct ArmGuard {
-  hw::Scanner *scanner;
+  hw::Scanner* scanner;
   ~ArmGuard() { (void)scanner->Disarm(); }
 };
 
-} // namespace
+}  // namespace
 
-Result<Report> RunMarkJob(const LoadedJob &job, const RunOptions &options) {
+Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
   const auto wall_start = std::chrono::steady_clock::now();
   ScanJobSpec spec;
   MarkJobSpec mark;
   hw::MachineConfig machine_config;
-  INSITU_RETURN_IF_ERROR(
-      ReadScanJob(job, &spec, &machine_config, [&](ConfigReader &r) {
-        ReadMarkSections(r, job.folder, &mark);
-      }));
+  INSITU_RETURN_IF_ERROR(ReadScanJob(job, &spec, &machine_config, [&](ConfigReader& r) {
+    ReadMarkSections(r, job.folder, &mark);
+  }));
   // The patterns are read before the machine moves: a bad pattern file fails
   // now.
   std::vector<std::vector<pattern::Segment2>> placed_items;
-  PathStats paths; // over all items
+  PathStats paths;  // over all items
   std::vector<pattern::Segment2> placed;
   for (size_t i = 0; i < mark.items.size(); ++i) {
-    const std::string where = mark.items.size() > 1
-                                  ? ": items[" + std::to_string(i) + "].pattern"
-                                  : ": pattern";
+    const std::string where =
+        mark.items.size() > 1 ? ": items[" + std::to_string(i) + "].pattern" : ": pattern";
     PathStats st;
     auto segments = PatternSegments(mark.items[i], &st);
     paths.input_points += st.input_points;
@@ -377,29 +338,24 @@ Result<Report> RunMarkJob(const LoadedJob &job, const RunOptions &options) {
     paths.max_error_mm = std::max(paths.max_error_mm, st.max_error_mm);
     paths.jump_mm += st.jump_mm * mark.items[i].placement.scale;
     paths.jump_file_mm += st.jump_file_mm * mark.items[i].placement.scale;
-    if (!segments.ok())
-      return segments.status().Prefixed(job.path + where);
-    if (segments->empty())
-      return InvalidArgument(job.path + where + ": nothing to mark");
+    if (!segments.ok()) return segments.status().Prefixed(job.path + where);
+    if (segments->empty()) return InvalidArgument(job.path + where + ": nothing to mark");
     if (mark.items[i].anchor == "centre") {
       Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e300), hi = -lo;
-      for (const auto &sg : *segments) {
+      for (const auto& sg : *segments) {
         lo = lo.cwiseMin(sg.a.cwiseMin(sg.b));
         hi = hi.cwiseMax(sg.a.cwiseMax(sg.b));
       }
       const Eigen::Vector2d mid = 0.5 * (lo + hi);
-      for (auto &sg : *segments)
-        sg.a -= mid, sg.b -= mid;
+      for (auto& sg : *segments) sg.a -= mid, sg.b -= mid;
     }
     placed_items.push_back(pattern::Place(*segments, mark.items[i].placement));
-    placed.insert(placed.end(), placed_items.back().begin(),
-                  placed_items.back().end());
+    placed.insert(placed.end(), placed_items.back().begin(), placed_items.back().end());
   }
   pattern::FieldCorrection correction;
   if (!mark.correction_file.empty()) {
     auto table = pattern::CorrectionTable::Load(mark.correction_file);
-    if (!table.ok())
-      return table.status().Prefixed(job.path + ": head.correction");
+    if (!table.ok()) return table.status().Prefixed(job.path + ": head.correction");
     correction = table->AsFieldCorrection();
   }
   INSITU_ASSIGN_OR_RETURN(ScanMachine up, BringUp(job, spec, machine_config));
@@ -414,19 +370,16 @@ Result<Report> RunMarkJob(const LoadedJob &job, const RunOptions &options) {
     }
     if (mark.head.field_half_size_mm > head.field_half_size_mm ||
         mark.head.focus_half_range_mm > head.focus_range_mm) {
-      return InvalidArgument(
-          job.path + ": head: limits beyond the scan head's own (field +-" +
-          std::to_string(head.field_half_size_mm) + " mm, focus +-" +
-          std::to_string(head.focus_range_mm) + " mm)");
+      return InvalidArgument(job.path + ": head: limits beyond the scan head's own (field +-" +
+                             std::to_string(head.field_half_size_mm) + " mm, focus +-" +
+                             std::to_string(head.focus_range_mm) + " mm)");
     }
   }
 
-  INSITU_ASSIGN_OR_RETURN(Report report,
-                          StartReport(job.kind, options.out_dir));
+  INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir));
   const std::filesystem::path dir(options.out_dir);
-  auto finish = [&](bool ok, const std::string &error) {
-    return FinishReport(report, ok, error, wall_start, options.out_dir,
-                        StatusCode::kDeviceError);
+  auto finish = [&](bool ok, const std::string& error) {
+    return FinishReport(report, ok, error, wall_start, options.out_dir, StatusCode::kDeviceError);
   };
   auto log = Logger("job");
 
@@ -436,43 +389,35 @@ Result<Report> RunMarkJob(const LoadedJob &job, const RunOptions &options) {
   auto scanned = RunScan(
       up.machine, spec.scan, spec.extraction, up.calibration,
       [&](int done, int) { progress.Update(done); }, options.cancel);
-  if (!scanned.ok())
-    return finish(false, scanned.status().ToString());
-  const Status saved =
-      geometry::SaveCloudPly(scanned->cloud, (dir / "cloud.ply").string());
-  if (!saved.ok())
-    return finish(false, saved.ToString());
+  if (!scanned.ok()) return finish(false, scanned.status().ToString());
+  const Status saved = geometry::SaveCloudPly(scanned->cloud, (dir / "cloud.ply").string());
+  if (!saved.ok()) return finish(false, saved.ToString());
   report.artifacts["cloud"] = "cloud.ply";
   report.metrics["points"] = static_cast<double>(scanned->cloud.size());
 
   // 2. Put the pattern on the measured surface.
   if (mark.surface.radius_mm < spec.scan.line_spacing_mm) {
-    report.warnings.push_back("surface.radius_mm is smaller than the scan's "
-                              "line spacing: points between two scan "
-                              "lines find only one of them and get no height "
-                              "(set it to the spacing or more)");
+    report.warnings.push_back(
+        "surface.radius_mm is smaller than the scan's "
+        "line spacing: points between two scan "
+        "lines find only one of them and get no height "
+        "(set it to the spacing or more)");
   }
   auto surface = geometry::SurfaceModel::Build(scanned->cloud, mark.surface);
-  if (!surface.ok())
-    return finish(false, surface.status().ToString());
+  if (!surface.ok()) return finish(false, surface.status().ToString());
   for (size_t i = 0; i < mark.items.size(); ++i) {
-    if (mark.items[i].mapping != "wrap")
-      continue;
-    auto wrapped = pattern::WrapOnSurface(placed_items[i],
-                                          mark.items[i].placement.offset_mm,
+    if (mark.items[i].mapping != "wrap") continue;
+    auto wrapped = pattern::WrapOnSurface(placed_items[i], mark.items[i].placement.offset_mm,
                                           *surface, mark.laser.max_step_mm);
     if (!wrapped.ok())
-      return finish(false, "item " + std::to_string(i) + ": " +
-                               wrapped.status().ToString());
+      return finish(false, "item " + std::to_string(i) + ": " + wrapped.status().ToString());
     placed_items[i] = std::move(*wrapped);
   }
   placed.clear();
-  for (const auto &item : placed_items)
-    placed.insert(placed.end(), item.begin(), item.end());
+  for (const auto& item : placed_items) placed.insert(placed.end(), item.begin(), item.end());
   pattern::MarkPlanReport plan;
   auto list = pattern::PlanMarking(placed, *surface, mark.laser, &plan);
-  if (!list.ok())
-    return finish(false, list.status().ToString());
+  if (!list.ok()) return finish(false, list.status().ToString());
   report.metrics["pattern_segments"] = plan.segments;
   report.metrics["marks"] = plan.marks;
   report.metrics["marked_length_mm"] = plan.marked_length_mm;
@@ -490,66 +435,54 @@ Result<Report> RunMarkJob(const LoadedJob &job, const RunOptions &options) {
     report.metrics["path_points_out"] = paths.mark_points;
     report.metrics["path_max_error_um"] = paths.max_error_mm * 1e3;
   }
-  for (const ItemSpec &it : mark.items) {
-    if (!it.hatch_angles_deg.empty() &&
-        it.hatch_spacing_mm < mark.spot_diameter_mm) {
-      report.warnings.push_back(
-          "hatch spacing " + std::to_string(it.hatch_spacing_mm) +
-          " mm is below the " + std::to_string(mark.spot_diameter_mm) +
-          " mm spot: neighbouring lines overlap, every area is marked more "
-          "than once (more "
-          "heat, deeper marks)");
+  for (const ItemSpec& it : mark.items) {
+    if (!it.hatch_angles_deg.empty() && it.hatch_spacing_mm < mark.spot_diameter_mm) {
+      report.warnings.push_back("hatch spacing " + std::to_string(it.hatch_spacing_mm) +
+                                " mm is below the " + std::to_string(mark.spot_diameter_mm) +
+                                " mm spot: neighbouring lines overlap, every area is marked more "
+                                "than once (more "
+                                "heat, deeper marks)");
     }
   }
   if (plan.points_without_surface > 0) {
-    const Eigen::Vector2d &p = plan.unmarked_mm.front();
+    const Eigen::Vector2d& p = plan.unmarked_mm.front();
     char where[96];
-    std::snprintf(where, sizeof where, " (the first at x = %.2f, y = %.2f mm)",
-                  p.x(), p.y());
+    std::snprintf(where, sizeof where, " (the first at x = %.2f, y = %.2f mm)", p.x(), p.y());
     report.warnings.push_back(
-        std::to_string(plan.points_without_surface) + " of " +
-        std::to_string(plan.points) +
+        std::to_string(plan.points_without_surface) + " of " + std::to_string(plan.points) +
         " pattern points have no measured surface and are not marked" + where);
   }
 
   // 3. The list in head units, every point checked against the field and the
   // focus range.
   auto emitted = pattern::Emit(*list, mark.head, correction);
-  if (!emitted.ok())
-    return finish(false, "galvo list: " + emitted.status().ToString());
+  if (!emitted.ok()) return finish(false, "galvo list: " + emitted.status().ToString());
   {
     std::ofstream f(dir / "galvo_list.txt");
     f << pattern::FormatEmitted(*emitted, mark.head);
-    if (!f.good())
-      return finish(false, "cannot write " + (dir / "galvo_list.txt").string());
+    if (!f.good()) return finish(false, "cannot write " + (dir / "galvo_list.txt").string());
   }
   report.artifacts["galvo_list"] = "galvo_list.txt";
   report.metrics["list_commands"] = static_cast<double>(emitted->size());
 
   // 4. Mark: armed only for the list. The side camera looks first, for the
   // comparison after.
-  if (options.cancel != nullptr && options.cancel->load())
-    return finish(false, "cancelled");
+  if (options.cancel != nullptr && options.cancel->load()) return finish(false, "cancelled");
   Frame before;
   double side_exposure_us = 0.0;
   if (mark.verify.enabled) {
     auto f = GrabSideView(up.machine, mark.verify, &side_exposure_us);
-    if (!f.ok())
-      return finish(false,
-                    "side camera before marking: " + f.status().ToString());
+    if (!f.ok()) return finish(false, "side camera before marking: " + f.status().ToString());
     before = std::move(*f);
   }
   {
     const Status armed = up.machine.scanner->Arm();
-    if (!armed.ok())
-      return finish(false, "arm: " + armed.ToString());
+    if (!armed.ok()) return finish(false, "arm: " + armed.ToString());
     ArmGuard guard{up.machine.scanner.get()};
-    log->info("mark: {} marks, {:.1f} mm, ~{:.1f} s", plan.marks,
-              plan.marked_length_mm, report.metrics["list_duration_s"]);
-    const Status ran =
-        up.machine.scanner->ExecuteList(ToHeadList(*list, correction));
-    if (!ran.ok())
-      return finish(false, "marking: " + ran.ToString());
+    log->info("mark: {} marks, {:.1f} mm, ~{:.1f} s", plan.marks, plan.marked_length_mm,
+              report.metrics["list_duration_s"]);
+    const Status ran = up.machine.scanner->ExecuteList(ToHeadList(*list, correction));
+    if (!ran.ok()) return finish(false, "marking: " + ran.ToString());
   }
   log->info("mark: done");
 
@@ -557,31 +490,26 @@ Result<Report> RunMarkJob(const LoadedJob &job, const RunOptions &options) {
   if (mark.verify.enabled) {
     auto after = GrabSideView(up.machine, mark.verify, &side_exposure_us);
     if (!after.ok())
-      return finish(false,
-                    "side camera after marking: " + after.status().ToString());
+      return finish(false, "side camera after marking: " + after.status().ToString());
     MarkDesign design;
     for (size_t i = 0; i < mark.items.size(); ++i) {
-      const ItemSpec &it = mark.items[i];
+      const ItemSpec& it = mark.items[i];
       ItemDesign d;
       d.placed = placed_items[i];
       d.spacing_mm = it.hatch_angles_deg.empty() ? 0.0 : it.hatch_spacing_mm;
-      d.hatch_angle_deg =
-          it.hatch_angles_deg.empty()
-              ? 0.0
-              : it.hatch_angles_deg.front() + it.placement.rotation_deg;
+      d.hatch_angle_deg = it.hatch_angles_deg.empty()
+                              ? 0.0
+                              : it.hatch_angles_deg.front() + it.placement.rotation_deg;
       design.items.push_back(std::move(d));
     }
-    for (const pattern::ListCommand &c : *list) {
-      if (c.op == pattern::ListOp::kMarkAbs)
-        design.mark_points.push_back(c.p);
+    for (const pattern::ListCommand& c : *list) {
+      if (c.op == pattern::ListOp::kMarkAbs) design.mark_points.push_back(c.p);
     }
-    const Status verified =
-        VerifyMarks(up.machine, up.calibration, *surface, design, mark.verify,
-                    before, *after, options.out_dir, &report);
-    if (!verified.ok())
-      return finish(false, "verification: " + verified.ToString());
+    const Status verified = VerifyMarks(up.machine, up.calibration, *surface, design, mark.verify,
+                                        before, *after, options.out_dir, &report);
+    if (!verified.ok()) return finish(false, "verification: " + verified.ToString());
   }
   return finish(true, "");
 }
 
-} // namespace insitu::job
+}  // namespace insitu::job

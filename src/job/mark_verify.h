@@ -19,10 +19,9 @@
 //   The focus error is the list's focus there minus that height.
 #pragma once
 
+#include <Eigen/Core>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "insitu/calib/calibration.h"
 #include "insitu/core/frame.h"
@@ -36,36 +35,33 @@ namespace insitu::job {
 
 struct VerifyOptions {
   bool enabled = true;
-  double coaxial_pixel_um =
-      5.0; // the coaxial camera's scale on the part (lens data)
-  double coaxial_rotation_deg = 0.0; // its sensor's x against galvo x
+  double coaxial_pixel_um = 5.0;      // the coaxial camera's scale on the part (lens data)
+  double coaxial_rotation_deg = 0.0;  // its sensor's x against galvo x
   double coaxial_exposure_ms = 2.0;
-  int spacing_spots = 3;       // places where the line spacing is measured
-  int focus_points = 5;        // marked points where the focus is swept
-  double focus_sweep_mm = 0.6; // +- around the list's focus
+  int spacing_spots = 3;        // places where the line spacing is measured
+  int focus_points = 5;         // marked points where the focus is swept
+  double focus_sweep_mm = 0.6;  // +- around the list's focus
   double focus_step_mm = 0.1;
-  double side_target_level =
-      160.0; // side camera auto-exposure: grey of the bare part
+  double side_target_level = 160.0;  // side camera auto-exposure: grey of the bare part
 
   Status Validate() const;
 };
 
 // One pattern as placed on the part.
 struct ItemDesign {
-  std::vector<pattern::Segment2> placed; // galvo xy, mm: everything marked
-  double spacing_mm = 0.0;      // hatch spacing asked for (0: no hatching)
-  double hatch_angle_deg = 0.0; // first hatch direction, galvo xy
+  std::vector<pattern::Segment2> placed;  // galvo xy, mm: everything marked
+  double spacing_mm = 0.0;                // hatch spacing asked for (0: no hatching)
+  double hatch_angle_deg = 0.0;           // first hatch direction, galvo xy
 };
 
 struct MarkDesign {
-  std::vector<ItemDesign> items;            // apart from each other on the part
-  std::vector<Eigen::Vector3d> mark_points; // the list's mark points (focus z)
+  std::vector<ItemDesign> items;             // apart from each other on the part
+  std::vector<Eigen::Vector3d> mark_points;  // the list's mark points (focus z)
 };
 
 // A side-camera frame with the pointer off, exposed so the bare part reads
 // about side_target_level (the exposure is kept for the frame after marking).
-Result<Frame> GrabSideView(hw::Machine &machine, const VerifyOptions &options,
-                           double *exposure_us);
+Result<Frame> GrabSideView(hw::Machine& machine, const VerifyOptions& options, double* exposure_us);
 
 // Measures the marks and fills report metrics (placement_error_mm and
 // pattern_size_error_pct, the worst item; line_spacing_um, line_spacing_std_um
@@ -73,11 +69,9 @@ Result<Frame> GrabSideView(hw::Machine &machine, const VerifyOptions &options,
 // for every spacing asked, e.g. line_spacing_40_um; focus_error_max_mm, ...),
 // artifacts (mark.png, coaxial.png) and warnings. A measurement that cannot be
 // made is a warning, not a failure: the marks are already on the part.
-Status VerifyMarks(hw::Machine &machine,
-                   const calib::CalibrationSet &calibration,
-                   const geometry::SurfaceModel &surface,
-                   const MarkDesign &design, const VerifyOptions &options,
-                   const Frame &before, const Frame &after,
-                   const std::string &out_dir, Report *report);
+Status VerifyMarks(hw::Machine& machine, const calib::CalibrationSet& calibration,
+                   const geometry::SurfaceModel& surface, const MarkDesign& design,
+                   const VerifyOptions& options, const Frame& before, const Frame& after,
+                   const std::string& out_dir, Report* report);
 
-} // namespace insitu::job
+}  // namespace insitu::job

@@ -3,28 +3,22 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <utility>
-
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <utility>
 
 #include "pattern/hatch_order.h"
 
 namespace insitu::pattern {
 
-Result<Mask> LoadRasterMask(const std::string &path, int threshold, bool invert,
-                            bool dither) {
-  if (!std::filesystem::exists(path))
-    return NotFound(path + ": no such pattern image");
+Result<Mask> LoadRasterMask(const std::string& path, int threshold, bool invert, bool dither) {
+  if (!std::filesystem::exists(path)) return NotFound(path + ": no such pattern image");
   if (threshold < 0 || threshold > 255) {
-    return InvalidArgument("threshold must be in 0..255, got " +
-                           std::to_string(threshold));
+    return InvalidArgument("threshold must be in 0..255, got " + std::to_string(threshold));
   }
   cv::Mat img = cv::imread(path, cv::IMREAD_GRAYSCALE | cv::IMREAD_ANYDEPTH);
-  if (img.empty())
-    return InvalidArgument(path + ": not an image OpenCV can read");
-  if (img.depth() != CV_8U)
-    img.convertTo(img, CV_8U, img.depth() == CV_16U ? 1.0 / 257.0 : 1.0);
+  if (img.empty()) return InvalidArgument(path + ": not an image OpenCV can read");
+  if (img.depth() != CV_8U) img.convertTo(img, CV_8U, img.depth() == CV_16U ? 1.0 / 257.0 : 1.0);
   Mask m;
   m.width = img.cols;
   m.height = img.rows;
@@ -36,12 +30,11 @@ Result<Mask> LoadRasterMask(const std::string &path, int threshold, bool invert,
     // to one side.
     cv::Mat ink;
     img.convertTo(ink, CV_32F);
-    if (!invert)
-      ink = 255.0f - ink;
+    if (!invert) ink = 255.0f - ink;
     for (int v = 0; v < m.height; ++v) {
       const bool ltr = v % 2 == 0;
-      float *row = ink.ptr<float>(v);
-      float *below = v + 1 < m.height ? ink.ptr<float>(v + 1) : nullptr;
+      float* row = ink.ptr<float>(v);
+      float* below = v + 1 < m.height ? ink.ptr<float>(v + 1) : nullptr;
       for (int k = 0; k < m.width; ++k) {
         const int u = ltr ? k : m.width - 1 - k, ahead = ltr ? u + 1 : u - 1,
                   back = ltr ? u - 1 : u + 1;
@@ -49,20 +42,17 @@ Result<Mask> LoadRasterMask(const std::string &path, int threshold, bool invert,
         const float err = row[u] - (mark ? 255.0f : 0.0f);
         m.on[static_cast<size_t>(v) * m.width + u] = mark;
         count += mark;
-        if (ahead >= 0 && ahead < m.width)
-          row[ahead] += err * 7.0f / 16.0f;
+        if (ahead >= 0 && ahead < m.width) row[ahead] += err * 7.0f / 16.0f;
         if (below) {
-          if (back >= 0 && back < m.width)
-            below[back] += err * 3.0f / 16.0f;
+          if (back >= 0 && back < m.width) below[back] += err * 3.0f / 16.0f;
           below[u] += err * 5.0f / 16.0f;
-          if (ahead >= 0 && ahead < m.width)
-            below[ahead] += err * 1.0f / 16.0f;
+          if (ahead >= 0 && ahead < m.width) below[ahead] += err * 1.0f / 16.0f;
         }
       }
     }
   } else {
     for (int v = 0; v < m.height; ++v) {
-      const uint8_t *row = img.ptr<uint8_t>(v);
+      const uint8_t* row = img.ptr<uint8_t>(v);
       for (int u = 0; u < m.width; ++u) {
         const bool dark = row[u] < threshold;
         const bool mark = invert ? !dark : dark;
@@ -72,32 +62,25 @@ Result<Mask> LoadRasterMask(const std::string &path, int threshold, bool invert,
     }
   }
   if (count == 0)
-    return InvalidArgument(path + ": no pixel to mark at threshold " +
-                           std::to_string(threshold));
+    return InvalidArgument(path + ": no pixel to mark at threshold " + std::to_string(threshold));
   return m;
 }
 
-Result<std::vector<Segment2>> HatchMask(const Mask &mask, double pixel_mm,
-                                        double spacing_mm, double angle_deg) {
-  if (!(pixel_mm > 0))
-    return InvalidArgument("pixel_mm must be > 0");
-  if (!(spacing_mm > 0))
-    return InvalidArgument("hatch spacing must be > 0");
-  if (mask.width <= 0 || mask.height <= 0)
-    return InvalidArgument("the mask is empty");
+Result<std::vector<Segment2>> HatchMask(const Mask& mask, double pixel_mm, double spacing_mm,
+                                        double angle_deg) {
+  if (!(pixel_mm > 0)) return InvalidArgument("pixel_mm must be > 0");
+  if (!(spacing_mm > 0)) return InvalidArgument("hatch spacing must be > 0");
+  if (mask.width <= 0 || mask.height <= 0) return InvalidArgument("the mask is empty");
   const double a = angle_deg * M_PI / 180.0;
-  const Eigen::Vector2d dir(std::cos(a), std::sin(a)),
-      across(-std::sin(a), std::cos(a));
-  const double half_w = 0.5 * mask.width * pixel_mm,
-               half_h = 0.5 * mask.height * pixel_mm;
+  const Eigen::Vector2d dir(std::cos(a), std::sin(a)), across(-std::sin(a), std::cos(a));
+  const double half_w = 0.5 * mask.width * pixel_mm, half_h = 0.5 * mask.height * pixel_mm;
   // Lines cover the mask's bounding circle.
   const double reach = std::hypot(half_w, half_h);
   const double step = 0.25 * pixel_mm;
-  auto marked = [&](const Eigen::Vector2d &p) {
+  auto marked = [&](const Eigen::Vector2d& p) {
     const int u = static_cast<int>(std::floor((p.x() + half_w) / pixel_mm));
     const int v = static_cast<int>(std::floor((half_h - p.y()) / pixel_mm));
-    return u >= 0 && v >= 0 && u < mask.width && v < mask.height &&
-           mask.at(u, v);
+    return u >= 0 && v >= 0 && u < mask.width && v < mask.height && mask.at(u, v);
   };
   std::vector<Segment2> out;
   const int k_max = static_cast<int>(std::floor(reach / spacing_mm));
@@ -109,13 +92,11 @@ Result<std::vector<Segment2>> HatchMask(const Mask &mask, double pixel_mm,
     int start = -1;
     for (int i = 0; i <= n + 1; ++i) {
       const bool on = i <= n && marked(base + (-reach + i * step) * dir);
-      if (on && start < 0)
-        start = i;
+      if (on && start < 0) start = i;
       if (!on && start >= 0) {
         // The run covers samples start..i-1; its ends lie half a sample beyond
         // them.
-        const double t0 = -reach + (start - 0.5) * step,
-                     t1 = -reach + (i - 0.5) * step;
+        const double t0 = -reach + (start - 0.5) * step, t1 = -reach + (i - 0.5) * step;
         line.push_back({base + t0 * dir, base + t1 * dir});
         start = -1;
       }
@@ -125,7 +106,7 @@ Result<std::vector<Segment2>> HatchMask(const Mask &mask, double pixel_mm,
   return out;
 }
 
-Eigen::Vector2d Placement::Apply(const Eigen::Vector2d &p) const {
+Eigen::Vector2d Placement::Apply(const Eigen::Vector2d& p) const {
   const double a = rotation_deg * M_PI / 180.0;
   const Eigen::Vector2d s = scale * p;
   return Eigen::Vector2d(std::cos(a) * s.x() - std::sin(a) * s.y(),
@@ -133,13 +114,11 @@ Eigen::Vector2d Placement::Apply(const Eigen::Vector2d &p) const {
          offset_mm;
 }
 
-std::vector<Segment2> Place(const std::vector<Segment2> &segments,
-                            const Placement &placement) {
+std::vector<Segment2> Place(const std::vector<Segment2>& segments, const Placement& placement) {
   std::vector<Segment2> out;
   out.reserve(segments.size());
-  for (const Segment2 &s : segments)
-    out.push_back({placement.Apply(s.a), placement.Apply(s.b)});
+  for (const Segment2& s : segments) out.push_back({placement.Apply(s.a), placement.Apply(s.b)});
   return out;
 }
 
-} // namespace insitu::pattern
+}  // namespace insitu::pattern

@@ -6,35 +6,26 @@
 namespace insitu::sim {
 namespace {
 
-int64_t FloorDiv(int64_t a, int64_t b) {
-  return a >= 0 ? a / b : -((-a + b - 1) / b);
-}
+int64_t FloorDiv(int64_t a, int64_t b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
 
-} // namespace
+}  // namespace
 
 float MarkMap::Cell(int64_t i, int64_t j) const {
   const auto it = tiles_.find(Key(FloorDiv(i, kTile), FloorDiv(j, kTile)));
-  if (it == tiles_.end())
-    return 0.0f;
-  const int64_t li = i - FloorDiv(i, kTile) * kTile,
-                lj = j - FloorDiv(j, kTile) * kTile;
+  if (it == tiles_.end()) return 0.0f;
+  const int64_t li = i - FloorDiv(i, kTile) * kTile, lj = j - FloorDiv(j, kTile) * kTile;
   return it->second[static_cast<size_t>(lj * kTile + li)];
 }
 
-float &MarkMap::CellRef(int64_t i, int64_t j) {
-  std::vector<float> &tile =
-      tiles_[Key(FloorDiv(i, kTile), FloorDiv(j, kTile))];
-  if (tile.empty())
-    tile.assign(static_cast<size_t>(kTile) * kTile, 0.0f);
-  const int64_t li = i - FloorDiv(i, kTile) * kTile,
-                lj = j - FloorDiv(j, kTile) * kTile;
+float& MarkMap::CellRef(int64_t i, int64_t j) {
+  std::vector<float>& tile = tiles_[Key(FloorDiv(i, kTile), FloorDiv(j, kTile))];
+  if (tile.empty()) tile.assign(static_cast<size_t>(kTile) * kTile, 0.0f);
+  const int64_t li = i - FloorDiv(i, kTile) * kTile, lj = j - FloorDiv(j, kTile) * kTile;
   return tile[static_cast<size_t>(lj * kTile + li)];
 }
 
-void MarkMap::AddCrater(double x, double y, double radius, double w,
-                        double delta_um) {
-  if (!(radius > 0) || !(w > 0) || !(delta_um > 0))
-    return;
+void MarkMap::AddCrater(double x, double y, double radius, double w, double delta_um) {
+  if (!(radius > 0) || !(w > 0) || !(delta_um > 0)) return;
   const int64_t i0 = static_cast<int64_t>(std::floor((x - radius) / kCellMm));
   const int64_t i1 = static_cast<int64_t>(std::ceil((x + radius) / kCellMm));
   const int64_t j0 = static_cast<int64_t>(std::floor((y - radius) / kCellMm));
@@ -44,8 +35,7 @@ void MarkMap::AddCrater(double x, double y, double radius, double w,
     for (int64_t i = i0; i <= i1; ++i) {
       const double dx = i * kCellMm - x, dy = j * kCellMm - y;
       const double d = scale * (r2 - dx * dx - dy * dy);
-      if (d > 0)
-        CellRef(i, j) += static_cast<float>(d);
+      if (d > 0) CellRef(i, j) += static_cast<float>(d);
     }
   }
   if (max_i_ < min_i_) {
@@ -57,24 +47,20 @@ void MarkMap::AddCrater(double x, double y, double radius, double w,
 }
 
 double MarkMap::DepthUm(double x, double y) const {
-  if (tiles_.empty())
-    return 0.0;
+  if (tiles_.empty()) return 0.0;
   const double fx = x / kCellMm, fy = y / kCellMm;
-  const int64_t i = static_cast<int64_t>(std::floor(fx)),
-                j = static_cast<int64_t>(std::floor(fy));
-  if (i + 1 < min_i_ || i > max_i_ || j + 1 < min_j_ || j > max_j_)
-    return 0.0;
+  const int64_t i = static_cast<int64_t>(std::floor(fx)), j = static_cast<int64_t>(std::floor(fy));
+  if (i + 1 < min_i_ || i > max_i_ || j + 1 < min_j_ || j > max_j_) return 0.0;
   const double ax = fx - i, ay = fy - j;
   return (1 - ay) * ((1 - ax) * Cell(i, j) + ax * Cell(i + 1, j)) +
          ay * ((1 - ax) * Cell(i, j + 1) + ax * Cell(i + 1, j + 1));
 }
 
-bool MarkMap::Bounds(double *x0, double *y0, double *x1, double *y1) const {
-  if (tiles_.empty())
-    return false;
+bool MarkMap::Bounds(double* x0, double* y0, double* x1, double* y1) const {
+  if (tiles_.empty()) return false;
   *x0 = min_i_ * kCellMm, *x1 = max_i_ * kCellMm;
   *y0 = min_j_ * kCellMm, *y1 = max_j_ * kCellMm;
   return true;
 }
 
-} // namespace insitu::sim
+}  // namespace insitu::sim

@@ -13,29 +13,26 @@
 namespace insitu::sim {
 
 class MarkMap {
-public:
+ public:
   static constexpr double kCellMm = 0.004;
 
   // Adds one crater at (x, y) mm: radius_mm (0: nothing), beam radius w_mm,
   // depth_um = delta.
-  void AddCrater(double x_mm, double y_mm, double radius_mm, double w_mm,
-                 double delta_um);
+  void AddCrater(double x_mm, double y_mm, double radius_mm, double w_mm, double delta_um);
   // Ablated depth at (x, y), um, bilinear between cells.
   double DepthUm(double x_mm, double y_mm) const;
   bool empty() const { return tiles_.empty(); }
   // Bounding box of everything marked (mm); false if nothing is.
-  bool Bounds(double *x0, double *y0, double *x1, double *y1) const;
+  bool Bounds(double* x0, double* y0, double* x1, double* y1) const;
 
-private:
-  static constexpr int kTile = 128; // cells per tile side (0.512 mm)
-  static int64_t Key(int64_t tx, int64_t ty) {
-    return (tx << 32) ^ (ty & 0xffffffff);
-  }
+ private:
+  static constexpr int kTile = 128;  // cells per tile side (0.512 mm)
+  static int64_t Key(int64_t tx, int64_t ty) { return (tx << 32) ^ (ty & 0xffffffff); }
   float Cell(int64_t i, int64_t j) const;
-  float &CellRef(int64_t i, int64_t j);
+  float& CellRef(int64_t i, int64_t j);
 
   std::unordered_map<int64_t, std::vector<float>> tiles_;
   int64_t min_i_ = 0, min_j_ = 0, max_i_ = -1, max_j_ = -1;
 };
 
-} // namespace insitu::sim
+}  // namespace insitu::sim

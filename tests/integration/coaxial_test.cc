@@ -2,11 +2,11 @@
 // measured with the hatch measurement of the vision module: the line spacing
 // and width it reads are the ones the list asked for and the craters have, and
 // the image is sharpest where the surface is in focus.
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdio>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "insitu/sim/world.h"
 #include "insitu/vision/mark_inspection.h"
@@ -16,14 +16,13 @@ namespace {
 
 sim::WorldOptions Plate() {
   sim::WorldOptions w;
-  w.part.kind = "plane"; // 2 mm plate on the stage, albedo 0.45
+  w.part.kind = "plane";  // 2 mm plate on the stage, albedo 0.45
   return w;
 }
 
 // Parallel lines along x, `spacing_mm` apart, centred on (x0, y0), marked in
 // focus at z.
-std::vector<sim::ListMove> Hatch(double x0, double y0, double z,
-                                 double spacing_mm, int lines,
+std::vector<sim::ListMove> Hatch(double x0, double y0, double z, double spacing_mm, int lines,
                                  double length_mm) {
   std::vector<sim::ListMove> moves;
   for (int i = 0; i < lines; ++i) {
@@ -43,38 +42,33 @@ sim::MarkingParams Params() {
   return p;
 }
 
-vision::ImageView View(const Frame &f) {
+vision::ImageView View(const Frame& f) {
   return {f.bytes.data(), f.width, f.height, static_cast<size_t>(f.width), 8};
 }
 
-double Spacing(double spacing_mm, double *width_um, double *std_um) {
+double Spacing(double spacing_mm, double* width_um, double* std_um) {
   sim::SimWorld world(Plate());
-  const double z = 2.0; // the plate's top
-  EXPECT_TRUE(
-      world
-          .ExecuteMarkingList(Hatch(0.0, 0.0, z, spacing_mm, 25, 1.5), Params())
-          .ok());
+  const double z = 2.0;  // the plate's top
+  EXPECT_TRUE(world.ExecuteMarkingList(Hatch(0.0, 0.0, z, spacing_mm, 25, 1.5), Params()).ok());
   EXPECT_TRUE(world.MoveHead({0.0, 0.0, z}).ok());
   auto frame = world.GrabCoaxial(2000.0);
   EXPECT_TRUE(frame.ok());
   vision::HatchMeasureOptions o;
-  o.pixel_um = 5.0; // the coaxial camera's nominal scale
-  o.camera_rotation_deg =
-      0.0; // nominal mounting; the simulated sensor is turned 0.4 deg
+  o.pixel_um = 5.0;             // the coaxial camera's nominal scale
+  o.camera_rotation_deg = 0.0;  // nominal mounting; the simulated sensor is turned 0.4 deg
   o.spacing_um = spacing_mm * 1e3;
   o.centre_px = {511.5, 511.5};
   o.half_length_um = 500.0;
   o.half_width_um = 10.0 * spacing_mm * 1e3;
   auto m = vision::MeasureHatch(View(*frame), o);
   EXPECT_TRUE(m.ok()) << m.status().ToString();
-  if (!m.ok())
-    return 0.0;
+  if (!m.ok()) return 0.0;
   *width_um = m->width_um;
   *std_um = m->spacing_std_um;
-  std::printf("spacing %.0f um: measured %.2f +- %.2f um over %d lines, width "
-              "%.1f um, contrast %.2f\n",
-              spacing_mm * 1e3, m->spacing_um, m->spacing_std_um, m->lines,
-              m->width_um, m->contrast);
+  std::printf(
+      "spacing %.0f um: measured %.2f +- %.2f um over %d lines, width "
+      "%.1f um, contrast %.2f\n",
+      spacing_mm * 1e3, m->spacing_um, m->spacing_std_um, m->lines, m->width_um, m->contrast);
   return m->spacing_um;
 }
 
@@ -97,9 +91,7 @@ TEST(Coaxial, HatchSpacingAsMarked) {
 
 TEST(Coaxial, SharpestWhereTheSurfaceIsInFocus) {
   sim::SimWorld world(Plate());
-  ASSERT_TRUE(
-      world.ExecuteMarkingList(Hatch(0.0, 0.0, 2.0, 0.04, 25, 1.5), Params())
-          .ok());
+  ASSERT_TRUE(world.ExecuteMarkingList(Hatch(0.0, 0.0, 2.0, 0.04, 25, 1.5), Params()).ok());
   std::vector<double> zs, sharp;
   for (double z = 1.0; z <= 3.01; z += 0.2) {
     ASSERT_TRUE(world.MoveHead({0.0, 0.0, z}).ok());
@@ -117,5 +109,5 @@ TEST(Coaxial, SharpestWhereTheSurfaceIsInFocus) {
   std::printf("best focus %.3f mm (surface at 2.000)\n", *best);
 }
 
-} // namespace
-} // namespace insitu
+}  // namespace
+}  // namespace insitu

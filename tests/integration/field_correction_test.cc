@@ -5,12 +5,12 @@
 // table here is measured the way a field calibration would measure it (where
 // does each command land), with the simulator standing in for the measuring
 // instrument.
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdio>
 #include <sstream>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "insitu/pattern/correction_table.h"
 #include "insitu/sim/world.h"
@@ -20,7 +20,7 @@ namespace {
 
 sim::WorldOptions DistortedHead() {
   sim::WorldOptions w;
-  w.part.kind = "none"; // the plate at z = 0
+  w.part.kind = "none";  // the plate at z = 0
   w.scan_head.optics.focal_length_mm = 257.55;
   w.scan_head.optics.mirror_separation_mm = 18.0;
   w.scan_head.x_zero_offset_mrad = 0.2;
@@ -29,14 +29,13 @@ sim::WorldOptions DistortedHead() {
 
 // Where the spot of one marking pulse lands for a command (the crater's
 // centre).
-Eigen::Vector2d Land(const sim::WorldOptions &o, const Eigen::Vector2d &cmd) {
+Eigen::Vector2d Land(const sim::WorldOptions& o, const Eigen::Vector2d& cmd) {
   sim::SimWorld w(o);
   sim::MarkingParams p;
   p.jump_delay_us = 3000;
-  p.laser_off_delay_us = 40; // about one pulse at 30 kHz, at rest on the point
-  std::vector<sim::ListMove> moves{
-      {sim::ListMove::Kind::kJump, {cmd.x(), cmd.y(), 0.0}},
-      {sim::ListMove::Kind::kMark, {cmd.x(), cmd.y(), 0.0}}};
+  p.laser_off_delay_us = 40;  // about one pulse at 30 kHz, at rest on the point
+  std::vector<sim::ListMove> moves{{sim::ListMove::Kind::kJump, {cmd.x(), cmd.y(), 0.0}},
+                                   {sim::ListMove::Kind::kMark, {cmd.x(), cmd.y(), 0.0}}};
   EXPECT_TRUE(w.ExecuteMarkingList(moves, p).ok());
   EXPECT_FALSE(w.mark_pulses().empty());
   return w.mark_pulses().back().point_in_world.head<2>();
@@ -53,10 +52,9 @@ TEST(FieldCorrection, TableBringsTheSpotsBackOnTarget) {
     for (int i = 0; i < 9; ++i) {
       const Eigen::Vector2d target(-60.0 + 15.0 * i, -60.0 + 15.0 * j);
       Eigen::Vector2d cmd = target;
-      for (int it = 0; it < 4; ++it)
-        cmd += target - Land(o, cmd);
-      csv << target.x() << "," << target.y() << "," << cmd.x() - target.x()
-          << "," << cmd.y() - target.y() << "\n";
+      for (int it = 0; it < 4; ++it) cmd += target - Land(o, cmd);
+      csv << target.x() << "," << target.y() << "," << cmd.x() - target.x() << ","
+          << cmd.y() - target.y() << "\n";
     }
   }
   auto table = pattern::CorrectionTable::Parse(csv.str(), "measured.csv");
@@ -64,13 +62,11 @@ TEST(FieldCorrection, TableBringsTheSpotsBackOnTarget) {
   const pattern::FieldCorrection correct = table->AsFieldCorrection();
 
   double worst_raw = 0.0, worst_corrected = 0.0;
-  for (const Eigen::Vector2d &target :
-       {Eigen::Vector2d(40.0, 35.0), Eigen::Vector2d(-52.5, 10.0),
-        Eigen::Vector2d(7.5, -44.0), Eigen::Vector2d(0.0, 0.0)}) {
+  for (const Eigen::Vector2d& target : {Eigen::Vector2d(40.0, 35.0), Eigen::Vector2d(-52.5, 10.0),
+                                        Eigen::Vector2d(7.5, -44.0), Eigen::Vector2d(0.0, 0.0)}) {
     worst_raw = std::max(worst_raw, (Land(o, target) - target).norm());
     const Eigen::Vector3d cmd = correct({target.x(), target.y(), 0.0});
-    worst_corrected =
-        std::max(worst_corrected, (Land(o, cmd.head<2>()) - target).norm());
+    worst_corrected = std::max(worst_corrected, (Land(o, cmd.head<2>()) - target).norm());
   }
   // Uncorrected the head is off by ~0.4 mm at 50 mm from the centre (1 % scale,
   // mirror spacing, the zero error's 0.05 mm). Corrected, what is left is the
@@ -78,31 +74,26 @@ TEST(FieldCorrection, TableBringsTheSpotsBackOnTarget) {
   // ~1e-5 /mm: ~1 um) and the pulse's own mirror lag: 10 um bounds it.
   EXPECT_GT(worst_raw, 0.2);
   EXPECT_LT(worst_corrected, 0.01);
-  std::printf("worst spot error: %.4f mm uncorrected, %.6f mm corrected\n",
-              worst_raw, worst_corrected);
+  std::printf("worst spot error: %.4f mm uncorrected, %.6f mm corrected\n", worst_raw,
+              worst_corrected);
 }
 
 TEST(FieldCorrection, MalformedTablesAreNamed) {
-  const auto err = [](const std::string &text) {
+  const auto err = [](const std::string& text) {
     auto t = pattern::CorrectionTable::Parse(text, "t.csv");
     return t.ok() ? std::string("ok") : t.status().ToString();
   };
   EXPECT_NE(err("x_mm,y_mm,dx_mm\n0,0,0\n").find("dy_mm"), std::string::npos);
-  EXPECT_NE(err("x_mm,y_mm,dx_mm,dy_mm,x_mm\n").find("twice"),
+  EXPECT_NE(err("x_mm,y_mm,dx_mm,dy_mm,x_mm\n").find("twice"), std::string::npos);
+  EXPECT_NE(err("x_mm,y_mm,dx_mm,dy_mm\n0,0,zero,0\n").find("t.csv:2"), std::string::npos);
+  EXPECT_NE(err("x_mm,y_mm,dx_mm,dy_mm\n0,0,nan,0\n").find("dx_mm"), std::string::npos);
+  EXPECT_NE(err("x_mm,y_mm,dx_mm,dy_mm\n0,0,0,0\n1,0,0,0\n0,1,0,0\n").find("no node"),
             std::string::npos);
-  EXPECT_NE(err("x_mm,y_mm,dx_mm,dy_mm\n0,0,zero,0\n").find("t.csv:2"),
-            std::string::npos);
-  EXPECT_NE(err("x_mm,y_mm,dx_mm,dy_mm\n0,0,nan,0\n").find("dx_mm"),
-            std::string::npos);
-  EXPECT_NE(
-      err("x_mm,y_mm,dx_mm,dy_mm\n0,0,0,0\n1,0,0,0\n0,1,0,0\n").find("no node"),
-      std::string::npos);
   EXPECT_NE(err("x_mm,y_mm,dx_mm,dy_mm\n0,0,0,0\n1,0,0,0\n0,1,0,0\n1,1,0,0\n1,"
                 "1,0,0\n")
                 .find("twice"),
             std::string::npos);
-  EXPECT_NE(err("x_mm,y_mm,dx_mm,dy_mm\n0,0,0,0\n0,1,0,0\n").find("2 x 2"),
-            std::string::npos);
+  EXPECT_NE(err("x_mm,y_mm,dx_mm,dy_mm\n0,0,0,0\n0,1,0,0\n").find("2 x 2"), std::string::npos);
   EXPECT_NE(err("# nothing\n").find("header"), std::string::npos);
   // A good one: bilinear, exact for an affine field, the edge's value beyond
   // the grid.
@@ -116,5 +107,5 @@ TEST(FieldCorrection, MalformedTablesAreNamed) {
   EXPECT_NEAR(t->OffsetAt(20.0, -5.0).x(), 1.0, 1e-12);
 }
 
-} // namespace
-} // namespace insitu
+}  // namespace
+}  // namespace insitu

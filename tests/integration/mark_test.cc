@@ -5,16 +5,16 @@
 // against the bounds, then reads what the simulated laser really did:
 // every crater in focus, on the part, inside the patterns' footprints, and the
 // crater map reads back as the code.
+#include <gtest/gtest.h>
+
+#include <Eigen/Core>
 #include <cmath>
 #include <filesystem>
 #include <memory>
-#include <string>
-
-#include <Eigen/Core>
-#include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <string>
 
 #include "insitu/hw/machine.h"
 #include "insitu/hw/sim_backend.h"
@@ -28,16 +28,14 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::shared_ptr<sim::SimWorld>
-    g_world; // the last world the "sim" backend brought up
+std::shared_ptr<sim::SimWorld> g_world;  // the last world the "sim" backend brought up
 
 void KeepTheWorld() {
-  hw::RegisterBackend(
-      "sim", [](const hw::MachineConfig &config) -> Result<hw::Machine> {
-        INSITU_RETURN_IF_ERROR(config.world.Validate());
-        g_world = std::make_shared<sim::SimWorld>(config.world);
-        return hw::MakeSimMachine(g_world);
-      });
+  hw::RegisterBackend("sim", [](const hw::MachineConfig& config) -> Result<hw::Machine> {
+    INSITU_RETURN_IF_ERROR(config.world.Validate());
+    g_world = std::make_shared<sim::SimWorld>(config.world);
+    return hw::MakeSimMachine(g_world);
+  });
 }
 
 using insitu::testing::DecodeQr;
@@ -48,17 +46,15 @@ TEST(MarkJob, InSituDemoMarksInFocusAndVerifies) {
   fs::remove_all(dir);
   const std::string cal = (dir / "machine.yaml").string();
   {
-    auto calibrated =
-        testing::QuickCalibrate(cal, (dir / "calibrate").string());
+    auto calibrated = testing::QuickCalibrate(cal, (dir / "calibrate").string());
     ASSERT_TRUE(calibrated.ok()) << calibrated.status().ToString();
   }
-  auto report = testing::RunShippedJob(
-      "insitu_demo.yaml",
-      {"machine.calibration=" + cal, "scan.line_spacing_mm=0.5",
-       "surface.radius_mm=0.6", "verify.focus_points=3"},
-      (dir / "mark").string());
+  auto report = testing::RunShippedJob("insitu_demo.yaml",
+                                       {"machine.calibration=" + cal, "scan.line_spacing_mm=0.5",
+                                        "surface.radius_mm=0.6", "verify.focus_points=3"},
+                                       (dir / "mark").string());
   ASSERT_TRUE(report.ok()) << report.status().ToString();
-  auto &m = report->metrics;
+  auto& m = report->metrics;
   EXPECT_EQ(m["points_without_surface"], 0.0);
   EXPECT_TRUE(fs::exists(dir / "mark" / "galvo_list.txt"));
   EXPECT_TRUE(fs::exists(dir / "mark" / "mark.png"));
@@ -81,13 +77,12 @@ TEST(MarkJob, InSituDemoMarksInFocusAndVerifies) {
   EXPECT_LE(m["path_max_error_um"], 2.0);
   ASSERT_TRUE(m.count("focus_error_max_mm"));
   EXPECT_LT(m["focus_error_max_mm"], 0.45);
-  std::printf("spacing %.2f / %.2f um, placement %.3f mm, focus %.3f mm\n",
-              m["line_spacing_40_um"], m["line_spacing_120_um"],
-              m["placement_error_mm"], m["focus_error_max_mm"]);
+  std::printf("spacing %.2f / %.2f um, placement %.3f mm, focus %.3f mm\n", m["line_spacing_40_um"],
+              m["line_spacing_120_um"], m["placement_error_mm"], m["focus_error_max_mm"]);
 
   // What the simulated laser really did (truth the job never sees).
   ASSERT_NE(g_world, nullptr);
-  const auto &pulses = g_world->mark_pulses();
+  const auto& pulses = g_world->mark_pulses();
   ASSERT_GT(pulses.size(), 10000u);
   auto code = pattern::QrCodeMask("insitu demo 0001", 'M');
   ASSERT_TRUE(code.ok());
@@ -98,27 +93,24 @@ TEST(MarkJob, InSituDemoMarksInFocusAndVerifies) {
     double half;
   };
   // The glyph (4.2 x 6.2 mm) is bounded by its larger half size.
-  const Item items[3] = {{{1.0, -8.0}, 0.5 * code->width * 0.3},
-                         {{1.5, 4.0}, 2.5},
-                         {{1.5, 12.0}, 3.1}};
+  const Item items[3] = {
+      {{1.0, -8.0}, 0.5 * code->width * 0.3}, {{1.5, 4.0}, 2.5}, {{1.5, 12.0}, 3.1}};
   const double rot = 3.0 * M_PI / 180.0;
-  const auto local = [&](const Eigen::Vector3d &p, const Item &it) {
+  const auto local = [&](const Eigen::Vector3d& p, const Item& it) {
     const Eigen::Vector2d d = p.head<2>() - it.centre;
     return Eigen::Vector2d(std::cos(rot) * d.x() + std::sin(rot) * d.y(),
                            -std::sin(rot) * d.x() + std::cos(rot) * d.y());
   };
   double worst_defocus = 0.0;
   int off_part = 0, outside = 0;
-  for (const sim::MarkPulse &p : pulses) {
+  for (const sim::MarkPulse& p : pulses) {
     worst_defocus = std::max(worst_defocus, std::abs(p.defocus_mm));
     off_part += !p.on_part;
-    const double r =
-        0.5 * p.diameter_mm + 0.05; // crater radius + placement tolerance
+    const double r = 0.5 * p.diameter_mm + 0.05;  // crater radius + placement tolerance
     bool inside = false;
-    for (const Item &it : items) {
+    for (const Item& it : items) {
       const Eigen::Vector2d q = local(p.point_in_world, it);
-      inside |=
-          std::abs(q.x()) <= it.half + r && std::abs(q.y()) <= it.half + r;
+      inside |= std::abs(q.x()) <= it.half + r && std::abs(q.y()) <= it.half + r;
     }
     outside += !inside;
   }
@@ -127,8 +119,7 @@ TEST(MarkJob, InSituDemoMarksInFocusAndVerifies) {
   EXPECT_LT(worst_defocus, 0.1);
   EXPECT_EQ(off_part, 0);
   EXPECT_EQ(outside, 0);
-  std::printf("%zu pulses, worst defocus %.3f mm\n", pulses.size(),
-              worst_defocus);
+  std::printf("%zu pulses, worst defocus %.3f mm\n", pulses.size(), worst_defocus);
 
   // The QR code's crater map, seen from above at 20 um per pixel in the code's
   // own frame, reads back as the code: placed, oriented and marked right end to
@@ -136,16 +127,14 @@ TEST(MarkJob, InSituDemoMarksInFocusAndVerifies) {
   const double px = 0.02, margin = 4 * 0.3, half = items[0].half;
   const int n = static_cast<int>(std::ceil(2 * (half + margin) / px));
   cv::Mat map(n, n, CV_8UC1, cv::Scalar(255));
-  for (const sim::MarkPulse &p : pulses) {
+  for (const sim::MarkPulse& p : pulses) {
     const Eigen::Vector2d q = local(p.point_in_world, items[0]);
-    if (std::abs(q.x()) > half + margin || std::abs(q.y()) > half + margin)
-      continue;
+    if (std::abs(q.x()) > half + margin || std::abs(q.y()) > half + margin) continue;
     const double u = (q.x() + half + margin) / px;
-    const double v = (half + margin - q.y()) / px; // +y up
-    cv::circle(
-        map, cv::Point(static_cast<int>(u), static_cast<int>(v)),
-        std::max(1, static_cast<int>(std::lround(0.5 * p.diameter_mm / px))),
-        cv::Scalar(0), cv::FILLED);
+    const double v = (half + margin - q.y()) / px;  // +y up
+    cv::circle(map, cv::Point(static_cast<int>(u), static_cast<int>(v)),
+               std::max(1, static_cast<int>(std::lround(0.5 * p.diameter_mm / px))), cv::Scalar(0),
+               cv::FILLED);
   }
   // As an imager would: blurred over ~2 pixels (40 um), so the pulse texture
   // inside a module does not read as structure.
@@ -155,5 +144,5 @@ TEST(MarkJob, InSituDemoMarksInFocusAndVerifies) {
   EXPECT_EQ(DecodeQr(map), "insitu demo 0001");
 }
 
-} // namespace
-} // namespace insitu
+}  // namespace
+}  // namespace insitu

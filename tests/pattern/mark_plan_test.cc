@@ -3,9 +3,9 @@
 // refused.
 #include "insitu/pattern/mark_plan.h"
 
-#include <cmath>
-
 #include <gtest/gtest.h>
+
+#include <cmath>
 
 namespace insitu::pattern {
 namespace {
@@ -33,16 +33,14 @@ TEST(MarkPlan, MarksFollowTheSurfaceAndStopWhereNothingWasMeasured) {
   MarkSettings settings;
   MarkPlanReport report;
   // One line from x = -8 to 8 at y = 1: only |x| <= 5 lies on the scan.
-  auto list =
-      PlanMarking({{{-8.0, 1.0}, {8.0, 1.0}}}, *surface, settings, &report);
+  auto list = PlanMarking({{{-8.0, 1.0}, {8.0, 1.0}}}, *surface, settings, &report);
   ASSERT_TRUE(list.ok()) << list.status().ToString();
   int marks = 0, jumps = 0;
-  for (const ListCommand &c : *list) {
-    if (c.op != ListOp::kMarkAbs && c.op != ListOp::kJumpAbs)
-      continue;
+  for (const ListCommand& c : *list) {
+    if (c.op != ListOp::kMarkAbs && c.op != ListOp::kJumpAbs) continue;
     (c.op == ListOp::kMarkAbs ? marks : jumps)++;
     EXPECT_LE(std::abs(c.p.x()), 5.1);
-    EXPECT_NEAR(c.p.z(), Plane(c.p.x(), c.p.y()), 1e-4); // float cloud storage
+    EXPECT_NEAR(c.p.z(), Plane(c.p.x(), c.p.y()), 1e-4);  // float cloud storage
   }
   EXPECT_EQ(jumps, 1);
   EXPECT_EQ(marks, report.marks);
@@ -50,9 +48,8 @@ TEST(MarkPlan, MarksFollowTheSurfaceAndStopWhereNothingWasMeasured) {
   // the points lie on a 0.2 mm grid from x = -8.
   EXPECT_NEAR(report.marked_length_mm, 10.0, 0.25);
   EXPECT_GT(report.points_without_surface,
-            20); // ~3 mm each side at 0.2 mm steps
-  for (const Eigen::Vector2d &p : report.unmarked_mm)
-    EXPECT_GT(std::abs(p.x()), 5.0);
+            20);  // ~3 mm each side at 0.2 mm steps
+  for (const Eigen::Vector2d& p : report.unmarked_mm) EXPECT_GT(std::abs(p.x()), 5.0);
   EXPECT_NEAR(report.z_min_mm, Plane(-5.0, 1.0), 0.01);
 
   // Emitted through the head's limits as any list.
@@ -63,19 +60,17 @@ TEST(MarkPlan, PatternOffThePartIsRefused) {
   auto surface = geometry::SurfaceModel::Build(Scan(), {});
   ASSERT_TRUE(surface.ok());
   MarkPlanReport report;
-  auto list = PlanMarking({{{20.0, 0.0}, {25.0, 0.0}}}, *surface,
-                          MarkSettings{}, &report);
+  auto list = PlanMarking({{{20.0, 0.0}, {25.0, 0.0}}}, *surface, MarkSettings{}, &report);
   ASSERT_FALSE(list.ok());
   EXPECT_EQ(list.status().code(), StatusCode::kFailedPrecondition);
-  EXPECT_NE(list.status().message().find("place it on the scanned part"),
-            std::string::npos);
+  EXPECT_NE(list.status().message().find("place it on the scanned part"), std::string::npos);
   MarkSettings bad;
   bad.max_step_mm = 0;
   EXPECT_FALSE(PlanMarking({{{0, 0}, {1, 0}}}, *surface, bad, nullptr).ok());
 }
 
-} // namespace
-} // namespace insitu::pattern
+}  // namespace
+}  // namespace insitu::pattern
 
 namespace insitu::pattern {
 namespace {
@@ -92,8 +87,7 @@ TEST(MarkPlan, AConnectedPathIsOneMarkSequence) {
   auto list = PlanMarking(square, *surface, MarkSettings{}, &report);
   ASSERT_TRUE(list.ok());
   int jumps = 0;
-  for (const ListCommand &c : *list)
-    jumps += c.op == ListOp::kJumpAbs;
+  for (const ListCommand& c : *list) jumps += c.op == ListOp::kJumpAbs;
   EXPECT_EQ(jumps, 1);
   EXPECT_NEAR(report.marked_length_mm, 4.0, 1e-9);
 }
@@ -116,14 +110,13 @@ geometry::Cloud CrownScan() {
 
 // Length of a path along the true crown (fine numeric integration of each
 // mapped piece).
-double ArcLength(const std::vector<Segment2> &segs) {
+double ArcLength(const std::vector<Segment2>& segs) {
   double total = 0.0;
-  for (const Segment2 &s : segs) {
+  for (const Segment2& s : segs) {
     for (int k = 0; k < 400; ++k) {
       const Eigen::Vector2d a = s.a + (s.b - s.a) * (k / 400.0),
                             b = s.a + (s.b - s.a) * ((k + 1) / 400.0);
-      total += std::sqrt((b - a).squaredNorm() +
-                         std::pow(Crown(b.x()) - Crown(a.x()), 2));
+      total += std::sqrt((b - a).squaredNorm() + std::pow(Crown(b.x()) - Crown(a.x()), 2));
     }
   }
   return total;
@@ -154,5 +147,5 @@ TEST(Wrap, KeepsTheLengthOnACurvedSurface) {
   EXPECT_FALSE(WrapOnSurface(across, {40.0, 0.0}, *surface, 0.2).ok());
 }
 
-} // namespace
-} // namespace insitu::pattern
+}  // namespace
+}  // namespace insitu::pattern

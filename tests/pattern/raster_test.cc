@@ -2,11 +2,11 @@
 // on the part.
 #include "insitu/pattern/raster.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-
-#include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
 namespace insitu::pattern {
@@ -37,8 +37,7 @@ TEST(Raster, ImageToMaskAndBadImages) {
   ASSERT_TRUE(inv.ok());
   EXPECT_EQ(std::count(inv->on.begin(), inv->on.end(), 1), 6000 - 800);
 
-  EXPECT_EQ(LoadRasterMask((dir / "missing.png").string()).status().code(),
-            StatusCode::kNotFound);
+  EXPECT_EQ(LoadRasterMask((dir / "missing.png").string()).status().code(), StatusCode::kNotFound);
   std::ofstream(dir / "text.png") << "not an image";
   EXPECT_EQ(LoadRasterMask((dir / "text.png").string()).status().code(),
             StatusCode::kInvalidArgument);
@@ -46,8 +45,7 @@ TEST(Raster, ImageToMaskAndBadImages) {
   ASSERT_TRUE(cv::imwrite((dir / "white.png").string(), white));
   const auto none = LoadRasterMask((dir / "white.png").string());
   ASSERT_FALSE(none.ok());
-  EXPECT_NE(none.status().message().find("no pixel to mark"),
-            std::string::npos);
+  EXPECT_NE(none.status().message().find("no pixel to mark"), std::string::npos);
 }
 
 TEST(Raster, DitheredGreyKeepsItsDensity) {
@@ -55,16 +53,14 @@ TEST(Raster, DitheredGreyKeepsItsDensity) {
   fs::create_directories(dir);
   // A grey ramp: column band b (20 px wide) at grey 255 * b / 10, 200 rows.
   cv::Mat img(200, 220, CV_8UC1);
-  for (int u = 0; u < img.cols; ++u)
-    img.col(u).setTo(std::min(255, 255 * (u / 20) / 10));
+  for (int u = 0; u < img.cols; ++u) img.col(u).setTo(std::min(255, 255 * (u / 20) / 10));
   ASSERT_TRUE(cv::imwrite((dir / "ramp.png").string(), img));
   auto m = LoadRasterMask((dir / "ramp.png").string(), 128, false, true);
   ASSERT_TRUE(m.ok()) << m.status().ToString();
   for (int b = 0; b <= 10; ++b) {
     int on = 0;
     for (int v = 0; v < 200; ++v) {
-      for (int u = 20 * b + 2; u < 20 * b + 18; ++u)
-        on += m->at(u, v); // away from band edges
+      for (int u = 20 * b + 2; u < 20 * b + 18; ++u) on += m->at(u, v);  // away from band edges
     }
     // Error diffusion keeps the mean ink: the marked fraction of a band is its
     // ink to within the error carried across the band's edges and rows (at most
@@ -83,11 +79,10 @@ TEST(Raster, HatchLinesFillTheSquareAtTheSpacing) {
     auto lines = HatchMask(m, 0.01, 0.04, angle);
     ASSERT_TRUE(lines.ok());
     ASSERT_EQ(lines->size(), 25u) << angle;
-    for (const Segment2 &s : *lines)
-      EXPECT_NEAR((s.b - s.a).norm(), 1.0, 0.0026) << angle;
+    for (const Segment2& s : *lines) EXPECT_NEAR((s.b - s.a).norm(), 1.0, 0.0026) << angle;
     // Neighbouring lines 40 um apart, running in opposite directions.
-    const Segment2 &l0 = (*lines)[0];
-    const Segment2 &l1 = (*lines)[1];
+    const Segment2& l0 = (*lines)[0];
+    const Segment2& l1 = (*lines)[1];
     const Eigen::Vector2d d = (l0.b - l0.a).normalized();
     const Eigen::Vector2d n(-d.y(), d.x());
     EXPECT_NEAR(std::abs(n.dot(l1.a - l0.a)), 0.04, 1e-9);
@@ -98,8 +93,7 @@ TEST(Raster, HatchLinesFillTheSquareAtTheSpacing) {
   auto diag = HatchMask(m, 0.01, 0.04, 45.0);
   ASSERT_TRUE(diag.ok());
   double total = 0;
-  for (const Segment2 &s : *diag)
-    total += (s.b - s.a).norm();
+  for (const Segment2& s : *diag) total += (s.b - s.a).norm();
   EXPECT_NEAR(total, 25.0, 0.1);
   EXPECT_FALSE(HatchMask(m, 0.01, 0.0, 0.0).ok());
   EXPECT_FALSE(HatchMask(m, -1.0, 0.04, 0.0).ok());
@@ -118,5 +112,5 @@ TEST(Raster, PlacementScalesRotatesThenMoves) {
   EXPECT_NEAR((placed[0].b - placed[0].a).norm(), 2.0, 1e-12);
 }
 
-} // namespace
-} // namespace insitu::pattern
+}  // namespace
+}  // namespace insitu::pattern

@@ -11,10 +11,9 @@
 // least 2 x 2).
 #pragma once
 
+#include <Eigen/Core>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "insitu/core/status.h"
 #include "insitu/pattern/galvo_list.h"
@@ -22,13 +21,12 @@
 namespace insitu::pattern {
 
 class CorrectionTable {
-public:
+ public:
   // Errors (parse_error / invalid_argument) name the file, the line and the
   // column: missing columns, duplicate headers, non-numbers, NaN, a node twice
   // or missing, fewer than 2 x 2.
-  static Result<CorrectionTable> Parse(const std::string &text,
-                                       const std::string &origin);
-  static Result<CorrectionTable> Load(const std::string &path);
+  static Result<CorrectionTable> Parse(const std::string& text, const std::string& origin);
+  static Result<CorrectionTable> Load(const std::string& path);
 
   Eigen::Vector2d OffsetAt(double x_mm, double y_mm) const;
   // As a FieldCorrection for Emit().
@@ -37,9 +35,9 @@ public:
   int nodes_x() const { return static_cast<int>(xs_.size()); }
   int nodes_y() const { return static_cast<int>(ys_.size()); }
 
-private:
-  std::vector<double> xs_, ys_;         // ascending
-  std::vector<Eigen::Vector2d> offset_; // row-major: y index * nx + x index
+ private:
+  std::vector<double> xs_, ys_;          // ascending
+  std::vector<Eigen::Vector2d> offset_;  // row-major: y index * nx + x index
 };
 
-} // namespace insitu::pattern
+}  // namespace insitu::pattern
