@@ -1,5 +1,6 @@
 // insitu: the operator's command line. Runs job files against the machine they name.
 //   insitu run JOB.yaml [--out DIR] [--set dotted.key=value ...]
+//   insitu diagnose DATA.csv [--out DIR]
 // Exit codes: 0 success, 2 bad input (job file, --set, calibration file), 1 failure while
 // running (the report says what), 130 interrupted.
 #include <atomic>
@@ -12,6 +13,7 @@
 #include <CLI/CLI.hpp>
 
 #include "insitu/core/log.h"
+#include "insitu/job/diagnose_job.h"
 #include "insitu/job/job_file.h"
 #include "insitu/job/runner.h"
 
@@ -68,6 +70,21 @@ int Run(const std::string& job_path, const std::string& out_dir,
   return 0;
 }
 
+int Diagnose(const std::string& csv, const std::string& out_dir) {
+  const std::string out =
+      out_dir.empty() ? "insitu-out/diagnose-" + std::filesystem::path(csv).stem().string() : out_dir;
+  auto d = insitu::job::RunDiagnose(csv, out);
+  if (!d.ok()) {
+    std::fprintf(stderr, "insitu: %s\n", d.status().message().c_str());
+    return ExitCodeFor(d.status());
+  }
+  std::printf("%s\n", d->Summary().c_str());
+  const std::filesystem::path dir(out);
+  std::printf("report: %s\nresiduals: %s\n", (dir / "report.json").c_str(),
+              (dir / "residuals.png").c_str());
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -87,6 +104,13 @@ int main(int argc, char** argv) {
       ->take_all()
       ->allow_extra_args(false);
 
+  CLI::App* diagnose = app.add_subcommand(
+      "diagnose", "what the galvo model gets wrong in measured field data (CSV), and why");
+  std::string csv_path, diag_out;
+  diagnose->add_option("data", csv_path, "field data CSV (x_cmd_mm, y_cmd_mm, x_meas_mm, y_meas_mm)")
+      ->required();
+  diagnose->add_option("--out", diag_out, "output folder (default insitu-out/diagnose-<name>)");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -94,5 +118,6 @@ int main(int argc, char** argv) {
   }
   insitu::SetLogLevel(log_level);
   if (run->parsed()) return Run(job_path, out_dir, sets);
+  if (diagnose->parsed()) return Diagnose(csv_path, diag_out);
   return 2;
 }

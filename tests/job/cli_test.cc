@@ -144,3 +144,31 @@ TEST(Cli, MarkJobRefusesBadPatterns) {
 }
 
 }  // namespace
+
+namespace {
+
+// insitu diagnose on the shipped measured data writes the contract's report and the plot; bad
+// data is one clear line naming the file, the line and the column.
+TEST(Cli, DiagnoseTheMeasuredFieldAndRefuseBadData) {
+  const fs::path out = fs::temp_directory_path() / "insitu_cli_diagnose";
+  fs::remove_all(out);
+  const CliRun ok = Insitu("diagnose " + std::string(INSITU_SOURCE_DIR) +
+                           "/data/measured/galvo_field_hao2009.csv --out " + out.string());
+  EXPECT_EQ(ok.exit_code, 0) << ok.err;
+  std::ifstream f(out / "report.json");
+  const std::string report((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  for (const char* key : {"\"n_points\": 15", "\"nominal\"", "\"effects\"", "\"cause\"",
+                          "\"extended\"", "\"gain\"", "\"noise_mm\"", "\"unexplained\""}) {
+    EXPECT_NE(report.find(key), std::string::npos) << key;
+  }
+  EXPECT_TRUE(fs::exists(out / "residuals.png"));
+
+  const std::string bad = WriteJob("bad_field.csv", "x_cmd_mm,y_cmd_mm,x_meas_mm,y_meas_mm\n0,0,0,0\n1,0,one,0\n");
+  const CliRun r = Insitu("diagnose " + bad + " --out " + out.string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("bad_field.csv:3"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("x_meas_mm"), std::string::npos) << r.err;
+  EXPECT_EQ(Lines(r.err), 1) << r.err;
+}
+
+}  // namespace

@@ -1,0 +1,382 @@
+#include "insitu/fit/diagnose.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <numeric>
+#include <random>
+
+#include "insitu/fit/effects.h"
+#include "insitu/fit/model_fit.h"
+
+namespace insitu::fit {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// Regularised incomplete beta I_x(a, b) by its continued fraction (modified Lentz), for the
+// F distribution's tail. Accurate to ~1e-12 for the degrees of freedom met here.
+double BetaContinuedFraction(double a, double b, double x) {
+  constexpr double kTiny = 1e-300;
+  double c = 1.0, d = 1.0 - (a + b) * x / (a + 1.0);
+  if (std::abs(d) < kTiny) d = kTiny;
+  d = 1.0 / d;
+  double h = d;
+  for (int m = 1; m <= 500; ++m) {
+    const double m2 = 2.0 * m;
+    double aa = m * (b - m) * x / ((a + m2 - 1.0) * (a + m2));
+    d = 1.0 + aa * d;
+    if (std::abs(d) < kTiny) d = kTiny;
+    c = 1.0 + aa / c;
+    if (std::abs(c) < kTiny) c = kTiny;
+    d = 1.0 / d;
+    h *= d * c;
+    aa = -(a + m) * (a + b + m) * x / ((a + m2) * (a + m2 + 1.0));
+    d = 1.0 + aa * d;
+    if (std::abs(d) < kTiny) d = kTiny;
+    c = 1.0 + aa / c;
+    if (std::abs(c) < kTiny) c = kTiny;
+    d = 1.0 / d;
+    const double del = d * c;
+    h *= del;
+    if (std::abs(del - 1.0) < 1e-14) break;
+  }
+  return h;
+}
+
+double RegularisedBeta(double a, double b, double x) {
+  if (x <= 0.0) return 0.0;
+  if (x >= 1.0) return 1.0;
+  const double ln_front =
+      std::lgamma(a + b) - std::lgamma(a) - std::lgamma(b) + a * std::log(x) + b * std::log1p(-x);
+  if (x < (a + 1.0) / (a + b + 2.0)) return std::exp(ln_front) * BetaContinuedFraction(a, b, x) / a;
+  return 1.0 - std::exp(ln_front) * BetaContinuedFraction(b, a, 1.0 - x) / b;
+}
+
+// P(F > f) for F(d1, d2).
+double FTail(double f, double d1, double d2) {
+  if (!(f > 0)) return 1.0;
+  return RegularisedBeta(0.5 * d2, 0.5 * d1, d2 / (d2 + d1 * f));
+}
+
+double Bic(double rss, int m, int p) {
+  return m * std::log(std::max(rss, 1e-300) / m) + p * std::log(static_cast<double>(m));
+}
+
+struct Model {
+  std::vector<const Effect*> effects;
+  Result<FitResult> fit = FailedPrecondition("not fitted");
+};
+
+// Held-out rms: each fold fitted without its points, then predicted.
+Result<double> CrossValidatedRms(const FieldData& data, const std::vector<const Effect*>& effects,
+                                 const std::vector<int>& fold_of, int folds) {
+  double sum = 0.0;
+  int count = 0;
+  for (int f = 0; f < folds; ++f) {
+    std::vector<int> train, test;
+    for (int i = 0; i < static_cast<int>(fold_of.size()); ++i) {
+      (fold_of[i] == f ? test : train).push_back(i);
+    }
+    if (test.empty()) continue;
+    auto fit = FitEffects(data, effects, train);
+    if (!fit.ok()) return fit.status();
+    for (int i : test) {
+      sum += (data.points[i].meas - Predict(data.points[i], effects, fit->effects)).squaredNorm();
+      ++count;
+    }
+  }
+  if (count == 0) return FailedPrecondition("no held-out points");
+  return std::sqrt(sum / count);
+}
+
+std::string Describe(const std::string& name) {
+  static const std::map<std::string, std::string> kWords = {
+      {"offset", "an offset of the field"},
+      {"scale", "a scale error (focal length or galvo gain)"},
+      {"rotation", "a rotation of the field"},
+      {"skew", "non-orthogonal axes"},
+      {"mirror_separation", "two-mirror pincushion"},
+      {"lens_radial", "radial lens distortion"},
+      {"perspective", "a measuring camera not parallel to the field"},
+      {"thermal_drift", "thermal drift"},
+      {"tracking_lag", "galvo tracking lag"},
+      {"focus_scale", "a scale change with focus"},
+  };
+  const auto it = kWords.find(name);
+  return it == kWords.end() ? name : it->second;
+}
+
+}  // namespace
+
+Status DiagnoseOptions::Validate() const {
+  if (folds < 2) return InvalidArgument("folds must be >= 2");
+  if (!(min_delta_bic >= 0)) return InvalidArgument("min_delta_bic must be >= 0");
+  if (max_effects < 0) return InvalidArgument("max_effects must be >= 0");
+  if (!(alpha > 0 && alpha < 1)) return InvalidArgument("alpha must be in (0, 1)");
+  if (permutations < 19) return InvalidArgument("permutations must be >= 19");
+  if (neighbours < 1) return InvalidArgument("neighbours must be >= 1");
+  return Status::Ok();
+}
+
+Result<Diagnosis> Diagnose(const FieldData& data, const DiagnoseOptions& o) {
+  INSITU_RETURN_IF_ERROR(o.Validate());
+  const int n = static_cast<int>(data.points.size());
+  if (data.DistinctPositions() < 3) {
+    return FailedPrecondition(data.origin + ": " + std::to_string(data.DistinctPositions()) +
+                              " distinct commanded positions; a diagnosis needs at least 3");
+  }
+  Diagnosis d;
+  d.origin = data.origin;
+  d.n_points = n;
+  const int m = 2 * n;
+
+  // Folds: leave-one-out for small sets, else a seeded shuffle into k folds.
+  const bool loo = n <= o.loo_max_points;
+  const int folds = loo ? n : o.folds;
+  std::vector<int> fold_of(n);
+  {
+    std::vector<int> order(n);
+    std::iota(order.begin(), order.end(), 0);
+    std::mt19937_64 rng(o.seed);
+    if (!loo) std::shuffle(order.begin(), order.end(), rng);
+    for (int k = 0; k < n; ++k) fold_of[order[k]] = k % folds;
+  }
+
+  // Noise from replicates: pooled scatter about each group's mean, both axes.
+  const auto groups = data.ReplicateGroups();
+  double ss_pe = 0.0;
+  int df_pe = 0;
+  for (const auto& g : groups) {
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (int i : g) mean += data.points[i].meas;
+    mean /= static_cast<double>(g.size());
+    for (int i : g) ss_pe += (data.points[i].meas - mean).squaredNorm();
+    df_pe += 2 * (static_cast<int>(g.size()) - 1);
+  }
+  d.noise_mm = df_pe > 0 ? std::sqrt(2.0 * ss_pe / df_pe) : kNaN;
+  d.noise_source = df_pe > 0 ? "replicates" : "none";
+
+  // The nominal model.
+  std::vector<const Effect*> current;
+  auto fit = FitEffects(data, current);
+  if (!fit.ok()) return fit.status();
+  d.nominal_rms_mm = fit->rms_mm;
+  INSITU_ASSIGN_OR_RETURN(d.nominal_cv_rms_mm, CrossValidatedRms(data, current, fold_of, folds));
+  for (const FieldPoint& p : data.points) d.residual_nominal.push_back(p.meas - p.cmd);
+  double bic = Bic(fit->rss_mm2, m, fit->parameters);
+  double cv = d.nominal_cv_rms_mm;
+  FitResult best_fit = *fit;
+
+  // Forward selection.
+  const auto library = EffectLibrary();
+  while (static_cast<int>(current.size()) < o.max_effects) {
+    // Every candidate fitted jointly with the model so far, best BIC first.
+    struct Candidate {
+      const Effect* effect;
+      double bic;
+      FitResult fit;
+    };
+    std::vector<Candidate> candidates;
+    for (const auto& e : library) {
+      if (!e->Applicable(data)) continue;
+      if (std::find(current.begin(), current.end(), e.get()) != current.end()) continue;
+      std::vector<const Effect*> trial = current;
+      trial.push_back(e.get());
+      const int params = best_fit.parameters + static_cast<int>(e->param_names().size());
+      if (params + 1 > m) continue;  // too few points for this model
+      auto r = FitEffects(data, trial);
+      if (!r.ok()) {
+        d.notes.push_back(e->name() + ": " + r.status().message());
+        continue;
+      }
+      candidates.push_back({e.get(), Bic(r->rss_mm2, m, r->parameters), *r});
+    }
+    std::sort(candidates.begin(), candidates.end(),
+              [](const Candidate& a, const Candidate& b) { return a.bic < b.bic; });
+    // The strongest candidate that the held-out points confirm enters; a candidate whose
+    // held-out fits fail (a fold that cannot pin its parameters) gives way to the next.
+    const Candidate* taken = nullptr;
+    double taken_cv = cv;
+    for (const Candidate& c : candidates) {
+      if (bic - c.bic < o.min_delta_bic) break;
+      std::vector<const Effect*> trial = current;
+      trial.push_back(c.effect);
+      auto trial_cv = CrossValidatedRms(data, trial, fold_of, folds);
+      if (!trial_cv.ok()) {
+        d.notes.push_back(c.effect->name() + ": held-out fit: " + trial_cv.status().message());
+        continue;
+      }
+      if (!(*trial_cv < cv)) {
+        d.notes.push_back(c.effect->name() + " lowers BIC by " + std::to_string(bic - c.bic) +
+                          " but not the held-out error: not kept");
+        continue;
+      }
+      taken = &c;
+      taken_cv = *trial_cv;
+      break;
+    }
+    if (taken == nullptr) break;
+    EffectReport rep;
+    rep.name = taken->effect->name();
+    rep.meaning = taken->effect->meaning();
+    rep.param_names = taken->effect->param_names();
+    rep.delta_bic = taken->bic - bic;
+    rep.cv_rms_mm = taken_cv;
+    d.effects.push_back(rep);
+    current.push_back(taken->effect);
+    bic = taken->bic;
+    cv = taken_cv;
+    best_fit = taken->fit;
+  }
+  // The extended model's parameters, from the final joint fit.
+  for (size_t k = 0; k < d.effects.size(); ++k) {
+    d.effects[k].params = best_fit.effects[k].params;
+    d.effects[k].stderrs = best_fit.effects[k].stderrs;
+  }
+  d.extended_rms_mm = best_fit.rms_mm;
+  d.extended_cv_rms_mm = cv;
+  d.gain = cv > 0 ? d.nominal_cv_rms_mm / cv : 1.0;
+  for (const FieldPoint& p : data.points) {
+    d.residual_extended.push_back(p.meas - Predict(p, current, best_fit.effects));
+  }
+  // Strongest first: by the BIC drop at entry (forward selection already takes them so).
+  for (const EffectReport& e : d.effects) d.cause.push_back(e.name);
+
+  // Structure left over.
+  const double rss = best_fit.rss_mm2;
+  const int df_res = m - best_fit.parameters;
+  if (df_pe >= 2 && df_res - df_pe >= 1 && ss_pe > 0) {
+    const double ss_lof = std::max(0.0, rss - ss_pe);
+    const int df_lof = df_res - df_pe;
+    const double f = (ss_lof / df_lof) / (ss_pe / df_pe);
+    d.unexplained_test = "lack_of_fit";
+    d.unexplained_p = FTail(f, df_lof, df_pe);
+  } else if (n >= 2 * (o.neighbours + 1)) {
+    // Neighbouring residuals point the same way when a smooth effect is left: the mean dot
+    // product of each residual with its nearest neighbours' (commanded positions), against
+    // the same statistic for residuals shuffled among the points.
+    std::vector<std::vector<int>> nn(n);
+    for (int i = 0; i < n; ++i) {
+      std::vector<std::pair<double, int>> dist;
+      for (int j = 0; j < n; ++j) {
+        if (j != i) dist.push_back({(data.points[j].cmd - data.points[i].cmd).squaredNorm(), j});
+      }
+      std::partial_sort(dist.begin(), dist.begin() + o.neighbours, dist.end());
+      for (int k = 0; k < o.neighbours; ++k) nn[i].push_back(dist[k].second);
+    }
+    const auto statistic = [&](const std::vector<Eigen::Vector2d>& r) {
+      double s = 0.0;
+      for (int i = 0; i < n; ++i) {
+        for (int j : nn[i]) s += r[i].dot(r[j]);
+      }
+      return s;
+    };
+    std::vector<Eigen::Vector2d> r = d.residual_extended;
+    const double s0 = statistic(r);
+    std::mt19937_64 rng(o.seed ^ 0x5bd1e995ull);
+    int above = 0;
+    for (int k = 0; k < o.permutations; ++k) {
+      std::shuffle(r.begin(), r.end(), rng);
+      above += statistic(r) >= s0;
+    }
+    d.unexplained_test = "spatial_correlation";
+    d.unexplained_p = (1.0 + above) / (1.0 + o.permutations);
+  }
+  d.unexplained = d.unexplained_p < o.alpha;
+  if (d.unexplained) {
+    // Where: the commanded region holding the largest residuals (the top tenth).
+    std::vector<int> idx(n);
+    std::iota(idx.begin(), idx.end(), 0);
+    std::sort(idx.begin(), idx.end(), [&](int a, int b) {
+      return d.residual_extended[a].squaredNorm() > d.residual_extended[b].squaredNorm();
+    });
+    const int top = std::max(1, n / 10);
+    Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e300), hi = -lo;
+    for (int k = 0; k < top; ++k) {
+      lo = lo.cwiseMin(data.points[idx[k]].cmd);
+      hi = hi.cwiseMax(data.points[idx[k]].cmd);
+    }
+    char buf[200];
+    std::snprintf(
+        buf, sizeof buf,
+        "largest residuals (%.4f mm and below) at commanded x %.2f..%.2f, y %.2f..%.2f mm",
+        d.residual_extended[idx[0]].norm(), lo.x(), hi.x(), lo.y(), hi.y());
+    d.unexplained_where = buf;
+  }
+  // Within noise from the start: nothing to name.
+  if (std::isfinite(d.noise_mm) && d.nominal_rms_mm <= 1.5 * d.noise_mm) d.cause.clear();
+  return d;
+}
+
+std::string Diagnosis::Summary() const {
+  char buf[256];
+  std::string s;
+  std::snprintf(buf, sizeof buf, "the model misses %.4f mm RMS (held-out %.4f mm) over %d points",
+                nominal_rms_mm, nominal_cv_rms_mm, n_points);
+  s += buf;
+  if (cause.empty()) {
+    s += "; no cause: ";
+    s += unexplained ? "no effect of the library explains it" : "within noise";
+  } else {
+    s += "; cause: ";
+    for (size_t k = 0; k < effects.size(); ++k) {
+      if (k) s += ", ";
+      s += Describe(effects[k].name) + " (" + effects[k].name;
+      for (size_t j = 0; j < effects[k].params.size(); ++j) {
+        std::snprintf(buf, sizeof buf, "%s %s = %.4g", j ? "," : ":",
+                      effects[k].param_names[j].c_str(), effects[k].params[j]);
+        s += buf;
+      }
+      s += ")";
+    }
+    std::snprintf(buf, sizeof buf, "; extended model %.1f um held-out; gain %.1fx",
+                  extended_cv_rms_mm * 1e3, gain);
+    s += buf;
+  }
+  if (std::isfinite(noise_mm)) {
+    std::snprintf(buf, sizeof buf, "; noise %.1f um (replicates)", noise_mm * 1e3);
+    s += buf;
+  }
+  if (unexplained) s += "; unexplained structure remains: " + unexplained_where;
+  return s;
+}
+
+std::string Diagnosis::ToJson() const {
+  nlohmann::json j;
+  const auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); };
+  j["n_points"] = n_points;
+  j["nominal"] = {{"rms_mm", nominal_rms_mm}, {"cv_rms_mm", nominal_cv_rms_mm}};
+  j["effects"] = nlohmann::json::array();
+  for (const EffectReport& e : effects) {
+    nlohmann::json params, errs;
+    for (size_t k = 0; k < e.param_names.size(); ++k) {
+      params[e.param_names[k]] = k < e.params.size() ? num(e.params[k]) : nlohmann::json();
+      errs[e.param_names[k]] = k < e.stderrs.size() ? num(e.stderrs[k]) : nlohmann::json();
+    }
+    j["effects"].push_back({{"name", e.name},
+                            {"meaning", e.meaning},
+                            {"params", params},
+                            {"stderr", errs},
+                            {"delta_bic", e.delta_bic},
+                            {"cv_rms_mm", e.cv_rms_mm}});
+  }
+  j["cause"] = cause;
+  j["extended"] = {{"rms_mm", extended_rms_mm}, {"cv_rms_mm", extended_cv_rms_mm}};
+  j["gain"] = gain;
+  j["noise_mm"] = num(noise_mm);
+  j["noise_source"] = noise_source;
+  j["unexplained"] = unexplained;
+  j["unexplained_test"] = unexplained_test;
+  j["unexplained_p"] = unexplained_p;
+  if (unexplained) j["unexplained_where"] = unexplained_where;
+  j["notes"] = notes;
+  j["origin"] = origin;
+  return j.dump(2);
+}
+
+}  // namespace insitu::fit

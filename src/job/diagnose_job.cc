@@ -1,0 +1,107 @@
+#include "insitu/job/diagnose_job.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "insitu/fit/field_data.h"
+
+namespace insitu::job {
+namespace {
+
+// One panel of the quiver plot: commanded points, residual arrows scaled so the longest is a
+// tenth of the field's span, the scale written under it.
+void DrawPanel(cv::Mat& img, const cv::Rect& area, const fit::FieldData& data,
+               const std::vector<Eigen::Vector2d>& residual, const std::string& title) {
+  cv::rectangle(img, area, cv::Scalar(200, 200, 200), 1);
+  Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e300), hi = -lo;
+  for (const auto& p : data.points) {
+    lo = lo.cwiseMin(p.cmd);
+    hi = hi.cwiseMax(p.cmd);
+  }
+  const double span = std::max({hi.x() - lo.x(), hi.y() - lo.y(), 1e-6});
+  const int margin = 60;
+  const double px_per_mm = (std::min(area.width, area.height) - 2.0 * margin) / span;
+  const Eigen::Vector2d mid = 0.5 * (lo + hi);
+  const auto to_px = [&](const Eigen::Vector2d& p) {
+    return cv::Point2d(area.x + 0.5 * area.width + (p.x() - mid.x()) * px_per_mm,
+                       area.y + 0.5 * area.height - (p.y() - mid.y()) * px_per_mm);  // y up
+  };
+  double longest = 0.0;
+  for (const auto& r : residual) longest = std::max(longest, r.norm());
+  // Arrow magnification: the longest arrow a tenth of the span (a round number).
+  double gain = longest > 0 ? 0.1 * span / longest : 1.0;
+  const double decade = std::pow(10.0, std::floor(std::log10(gain)));
+  for (double f : {5.0, 2.0, 1.0}) {
+    if (gain >= f * decade) {
+      gain = f * decade;
+      break;
+    }
+  }
+  for (size_t i = 0; i < data.points.size(); ++i) {
+    const cv::Point2d a = to_px(data.points[i].cmd);
+    const cv::Point2d b = to_px(data.points[i].cmd + gain * residual[i]);
+    cv::circle(img, a, 2, cv::Scalar(90, 90, 90), cv::FILLED, cv::LINE_AA);
+    cv::arrowedLine(img, a, b, cv::Scalar(40, 60, 200), 1, cv::LINE_AA, 0, 0.25);
+  }
+  double rms = 0.0;
+  for (const auto& r : residual) rms += r.squaredNorm();
+  rms = std::sqrt(rms / std::max<size_t>(1, residual.size()));
+  char buf[200];
+  cv::putText(img, title, cv::Point(area.x + 10, area.y + 24), cv::FONT_HERSHEY_SIMPLEX, 0.6,
+              cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  std::snprintf(buf, sizeof buf, "rms %.4f mm, longest %.4f mm; arrows x %g", rms, longest, gain);
+  cv::putText(img, buf, cv::Point(area.x + 10, area.y + area.height - 14), cv::FONT_HERSHEY_SIMPLEX,
+              0.5, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  // A scale bar: what 0.01 mm (or the longest residual's decade) looks like at that gain.
+  const double bar_mm = std::pow(10.0, std::floor(std::log10(std::max(longest, 1e-9))));
+  const cv::Point2d s0(area.x + area.width - 80 - bar_mm * gain * px_per_mm, area.y + 40);
+  cv::line(img, s0, s0 + cv::Point2d(bar_mm * gain * px_per_mm, 0), cv::Scalar(40, 60, 200), 2);
+  std::snprintf(buf, sizeof buf, "%g mm", bar_mm);
+  cv::putText(img, buf, s0 + cv::Point2d(0, 18), cv::FONT_HERSHEY_SIMPLEX, 0.45,
+              cv::Scalar(40, 60, 200), 1, cv::LINE_AA);
+}
+
+}  // namespace
+
+Result<fit::Diagnosis> RunDiagnose(const std::string& csv_path, const std::string& out_dir,
+                                   const fit::DiagnoseOptions& options) {
+  INSITU_ASSIGN_OR_RETURN(fit::FieldData data, fit::LoadFieldCsv(csv_path));
+  INSITU_ASSIGN_OR_RETURN(fit::Diagnosis d, fit::Diagnose(data, options));
+  std::error_code ec;
+  std::filesystem::create_directories(out_dir, ec);
+  if (ec) return NotFound("cannot create output folder " + out_dir);
+  const std::filesystem::path dir(out_dir);
+  {
+    // Atomic: a reader never sees half a report.
+    const std::filesystem::path tmp = dir / "report.json.tmp";
+    std::ofstream f(tmp);
+    f << d.ToJson() << "\n";
+    f.close();
+    if (!f.good()) return Status(StatusCode::kDeviceError, "cannot write " + tmp.string());
+    std::filesystem::rename(tmp, dir / "report.json", ec);
+    if (ec)
+      return Status(StatusCode::kDeviceError, "cannot write " + (dir / "report.json").string());
+  }
+  cv::Mat img(620, 1240, CV_8UC3, cv::Scalar(255, 255, 255));
+  DrawPanel(img, cv::Rect(10, 10, 600, 600), data, d.residual_nominal,
+            "measured - commanded (nominal model)");
+  std::string after = "measured - extended model";
+  if (!d.cause.empty()) {
+    after += " (";
+    for (size_t k = 0; k < d.cause.size(); ++k) after += (k ? " + " : "") + d.cause[k];
+    after += ")";
+  }
+  DrawPanel(img, cv::Rect(630, 10, 600, 600), data, d.residual_extended, after);
+  if (!cv::imwrite((dir / "residuals.png").string(), img)) {
+    return Status(StatusCode::kDeviceError, "cannot write " + (dir / "residuals.png").string());
+  }
+  return d;
+}
+
+}  // namespace insitu::job
