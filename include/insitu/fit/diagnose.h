@@ -7,7 +7,8 @@
 //    fitted jointly with those in it (fit::FitEffects); the one lowering the Bayesian
 //    information criterion most, BIC = m ln(RSS / m) + p ln(m) over the m = 2n residual
 //    components, enters if it lowers BIC by more than `min_delta_bic` AND lowers the held-out
-//    error (k-fold cross-validation; leave-one-out for small sets). Repeat until nothing enters.
+//    error (k-fold cross-validation; leave-one-out for small sets) by `min_cv_improvement` at
+//    least; else the next best candidate is tried. Repeat until nothing enters.
 // 3. Unexplained structure in the final residual: with replicates, a lack-of-fit F test (the
 //    residual against the replicate scatter); without, the spatial correlation of residual
 //    vectors between nearest neighbours against random permutations of them. Either, below
@@ -33,6 +34,10 @@ struct DiagnoseOptions {
   int folds = 5;  // k-fold CV; leave-one-out when points <= loo_max_points
   int loo_max_points = 40;
   double min_delta_bic = 10.0;  // "very strong" evidence (Kass and Raftery)
+  // An effect is a cause only if it lowers the held-out rms by this fraction at least: a
+  // library effect fitted to part of a foreign pattern helps a little, a real one a lot
+  // (an effect at 5x the noise takes the held-out rms down by ~80 %).
+  double min_cv_improvement = 0.25;
   int max_effects = 5;
   double alpha = 0.01;     // false-alarm rate of the unexplained-structure tests
   int permutations = 199;  // for the spatial-correlation test
