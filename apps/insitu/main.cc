@@ -80,8 +80,8 @@ int Diagnose(const std::string& csv, const std::string& out_dir) {
   }
   std::printf("%s\n", d->Summary().c_str());
   const std::filesystem::path dir(out);
-  std::printf("report: %s\nresiduals: %s\n", (dir / "report.json").c_str(),
-              (dir / "residuals.png").c_str());
+  std::printf("report: %s\nresiduals: %s\nextension: %s\n", (dir / "report.json").c_str(),
+              (dir / "residuals.png").c_str(), (dir / "extension.yaml").c_str());
   return 0;
 }
 

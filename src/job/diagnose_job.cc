@@ -9,6 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "insitu/fit/extension.h"
 #include "insitu/fit/field_data.h"
 
 namespace insitu::job {
@@ -87,6 +88,12 @@ Result<fit::Diagnosis> RunDiagnose(const std::string& csv_path, const std::strin
     std::filesystem::rename(tmp, dir / "report.json", ec);
     if (ec)
       return Status(StatusCode::kDeviceError, "cannot write " + (dir / "report.json").string());
+  }
+  {
+    // The extended model, for the simulator (world scan_head.field_effects) and the galvo list
+    // (mark job head.model_extension).
+    INSITU_ASSIGN_OR_RETURN(fit::ModelExtension ext, fit::ModelExtension::FromDiagnosis(d));
+    INSITU_RETURN_IF_ERROR(fit::SaveExtension(ext, csv_path, (dir / "extension.yaml").string()));
   }
   cv::Mat img(620, 1240, CV_8UC3, cv::Scalar(255, 255, 255));
   DrawPanel(img, cv::Rect(10, 10, 600, 600), data, d.residual_nominal,

@@ -116,6 +116,27 @@ void ReadWorld(ConfigReader& r, sim::WorldOptions* w) {
     cx.Read("read_noise_e", &o.read_noise_e);
     cx.Read("exposure_ms", &o.exposure_ms);
   }
+  if (sh.Has("field_effects")) {
+    // Library effects the simulated head carries: [{name: ..., params: [...]}, ...].
+    sh.Skip("field_effects");
+    const ConfigNode list = sh.node().Child("field_effects");
+    w->scan_head.field_effects.clear();
+    if (!list.IsSequence()) {
+      sh.Fail("field_effects", "must be a list of {name, params}");
+    } else {
+      for (size_t i = 0; i < list.size() && sh.ok(); ++i) {
+        ConfigReader e(list.At(i));
+        sim::FieldEffectOption f;
+        e.Require("name");
+        e.Require("params");
+        e.Read("name", &f.name);
+        e.Read("params", &f.params);
+        const Status st = e.Finish();
+        if (!st.ok()) sh.Fail("field_effects", st.message());
+        w->scan_head.field_effects.push_back(f);
+      }
+    }
+  }
   if (sh.ok()) sh.FailFromValidate(w->scan_head.Validate());
 
   ConfigReader& c = r.Section("camera");

@@ -9,6 +9,7 @@
 
 #include "insitu/core/log.h"
 #include "insitu/geometry/surface.h"
+#include "insitu/fit/extension.h"
 #include "insitu/pattern/codes.h"
 #include "insitu/pattern/correction_table.h"
 #include "insitu/pattern/galvo_list.h"
@@ -70,6 +71,7 @@ struct MarkJobSpec {
   bool head_field_set = false,
        head_focus_set = false;  // else taken from the scan head
   std::string correction_file;  // field correction table (resolved), empty: none
+  std::string extension_file;   // model extension from insitu diagnose (resolved), empty: none
   VerifyOptions verify;
   double spot_diameter_mm = 0.04;  // the marking beam's 1/e^2 diameter at focus (lens data)
 };
@@ -182,6 +184,11 @@ void ReadMarkSections(ConfigReader& r, const std::string& folder, MarkJobSpec* s
   hd.Read("focus_half_range_mm", &s->head.focus_half_range_mm);
   hd.Read("correction", &s->correction_file);
   if (!s->correction_file.empty()) s->correction_file = ResolvePath(folder, s->correction_file);
+  hd.Read("model_extension", &s->extension_file);
+  if (!s->extension_file.empty()) s->extension_file = ResolvePath(folder, s->extension_file);
+  if (hd.ok() && !s->correction_file.empty() && !s->extension_file.empty()) {
+    hd.Fail("model_extension", "give either a correction table or a model extension, not both");
+  }
   if (hd.ok()) hd.FailFromValidate(s->head.Validate());
   ConfigReader& v = r.Section("verify");
   VerifyOptions& vo = s->verify;
@@ -357,6 +364,16 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
     auto table = pattern::CorrectionTable::Load(mark.correction_file);
     if (!table.ok()) return table.status().Prefixed(job.path + ": head.correction");
     correction = table->AsFieldCorrection();
+  }
+  if (!mark.extension_file.empty()) {
+    // The diagnosed model of where commands land: every point is sent as the command that
+    // lands on it.
+    auto ext = fit::LoadExtension(mark.extension_file);
+    if (!ext.ok()) return ext.status().Prefixed(job.path + ": head.model_extension");
+    correction = [e = *ext](const Eigen::Vector3d& p) {
+      const Eigen::Vector2d c = e.Inverse(p.head<2>(), p.z());
+      return Eigen::Vector3d(c.x(), c.y(), p.z());
+    };
   }
   INSITU_ASSIGN_OR_RETURN(ScanMachine up, BringUp(job, spec, machine_config));
   {

@@ -7,6 +7,7 @@
 #include <Eigen/Dense>
 
 #include "insitu/core/log.h"
+#include "insitu/fit/extension.h"
 #include "sim/mark_map.h"
 #include "sim/noise.h"
 #include "sim/parallel.h"
@@ -44,6 +45,10 @@ SimWorld::SimWorld(const WorldOptions& options)
       gain_db_(options.camera.gain_db) {
   camera_binned_ = std::make_unique<CameraModel>(options.camera);
   marks_ = std::make_unique<MarkMap>();
+  std::vector<fit::EffectParams> effects;
+  for (const FieldEffectOption& e : options.scan_head.field_effects) effects.push_back({e.name, e.params});
+  auto ext = fit::ModelExtension::Make(effects);  // valid: WorldOptions::Validate() checked it
+  field_effects_ = std::make_unique<fit::ModelExtension>(ext.ok() ? *ext : fit::ModelExtension());
   scene_->SetBoard(options.board, -1);
 }
 
@@ -85,9 +90,12 @@ const Scene& SimWorld::scene() const { return *scene_; }
 const ScanOptics& SimWorld::true_optics() const { return *true_optics_; }
 
 bool SimWorld::CommandToAngles(const Eigen::Vector3d& p, MirrorAngles* angles) const {
-  // The head's correction table is built from its design geometry; the mirrors' zero errors
-  // are what the real head adds on top.
-  if (!design_optics_->Solve(p.x(), p.y(), p.z(), angles)) return false;
+  // The head's correction table is built from its design geometry; the mirrors' zero errors,
+  // and any field effects the world carries (measured reality), are what the real head adds
+  // on top.
+  Eigen::Vector2d xy = p.head<2>();
+  if (!field_effects_->empty()) xy = field_effects_->Forward(xy, p.z());
+  if (!design_optics_->Solve(xy.x(), xy.y(), p.z(), angles)) return false;
   angles->x_rad += options_.scan_head.x_zero_offset_mrad * 1e-3;
   angles->y_rad += options_.scan_head.y_zero_offset_mrad * 1e-3;
   return true;

@@ -3,6 +3,8 @@
 #include <cmath>
 #include <sstream>
 
+#include "insitu/fit/extension.h"
+
 namespace insitu::sim {
 namespace {
 
@@ -47,6 +49,12 @@ Status ScanHeadOptions::Validate() const {
   INSITU_RETURN_IF_ERROR(pointer.Validate().Prefixed("pointer"));
   INSITU_RETURN_IF_ERROR(marking.Validate().Prefixed("marking"));
   INSITU_RETURN_IF_ERROR(coaxial.Validate().Prefixed("coaxial"));
+  {
+    std::vector<fit::EffectParams> effects;
+    for (const FieldEffectOption& e : field_effects) effects.push_back({e.name, e.params});
+    const auto ext = fit::ModelExtension::Make(effects);
+    if (!ext.ok()) return ext.status().Prefixed("field_effects");
+  }
   if (!Positive(field_half_size_mm)) return Bad("field_half_size_mm", "> 0", field_half_size_mm);
   if (!(focus_range_mm >= 0.0)) return Bad("focus_range_mm", ">= 0", focus_range_mm);
   if (!(tracking_lag_ms >= 0.0 && tracking_lag_ms < 100.0)) {

@@ -1,6 +1,7 @@
 // `insitu diagnose DATA.csv [--out DIR]`: loads measured galvo field data (CONTRACT.md), runs
-// fit::Diagnose, and writes DIR/report.json (the diagnose schema of CONTRACT.md) and
-// DIR/residuals.png (the residual vector field before and after, arrows scaled and labelled).
+// fit::Diagnose, and writes DIR/report.json (the diagnose schema of CONTRACT.md),
+// DIR/residuals.png (the residual vector field before and after, arrows scaled and labelled)
+// and DIR/extension.yaml (the extended model: fit/extension.h).
 #pragma once
 
 #include <string>

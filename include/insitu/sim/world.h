@@ -56,6 +56,13 @@ struct MarkPulse {
 };
 
 class MarkMap;
+}  // namespace insitu::sim
+
+namespace insitu::fit {
+class ModelExtension;
+}  // namespace insitu::fit
+
+namespace insitu::sim {
 
 // What the camera saw in the last frame, from the simulator's side: for tests only.
 struct FrameTruth {
@@ -166,6 +173,7 @@ class SimWorld {
   int64_t laser_on_ticks_ = 0;
   std::vector<MarkPulse> pulses_;
   std::unique_ptr<MarkMap> marks_;  // what the pulses ablated, for the cameras
+  std::unique_ptr<fit::ModelExtension> field_effects_;  // carried by the head (may be empty)
   Eigen::Vector3d last_command_ = Eigen::Vector3d::Zero();
   FrameTruth truth_;
   // Ambient image (electrons per second per pixel), cached per stage height and binning.

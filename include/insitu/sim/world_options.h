@@ -61,6 +61,13 @@ struct CoaxialCameraOptions {
   Status Validate() const;
 };
 
+// A library effect (fit/effects.h) the simulated head carries: where a command lands moves by
+// it, as in measured reality (a model extension from `insitu diagnose`).
+struct FieldEffectOption {
+  std::string name;
+  std::vector<double> params;  // in the effect's parameter order
+};
+
 struct ScanHeadOptions {
   ScanOpticsGeometry optics;           // as built (the truth)
   ScanOpticsGeometry design;           // what the head's own correction table assumes
@@ -74,6 +81,7 @@ struct ScanHeadOptions {
   BeamOptions pointer;                 // red pointer (class 2)
   BeamOptions marking{1064.0, 30000.0, 0.040, 1.3};  // fibre marking laser
   CoaxialCameraOptions coaxial;
+  std::vector<FieldEffectOption> field_effects;  // none by default
 
   Status Validate() const;
 };
