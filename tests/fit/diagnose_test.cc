@@ -57,6 +57,28 @@ TEST(Diagnose, AnEffectOutsideTheLibraryIsUnexplained) {
   std::printf("%s\n", d->Summary().c_str());
 }
 
+TEST(Diagnose, ReplicatesTestTheFitAgainstTheirScatter) {
+  Synth s;
+  s.replicates = 2;
+  // A library effect alone: the extended model fits to the replicate scatter.
+  s.effects = {{"lens_radial", {3e-7, -5.0, 4.0}}};
+  auto explained = Diagnose(Generate(s));
+  ASSERT_TRUE(explained.ok());
+  EXPECT_EQ(explained->unexplained_test, "lack_of_fit");
+  ASSERT_FALSE(explained->cause.empty());
+  EXPECT_EQ(explained->cause.front(), "lens_radial");
+  EXPECT_FALSE(explained->unexplained) << explained->Summary();
+  // Plus a ripple no library effect has: the residual stays well above the scatter.
+  s.extra = [](const Eigen::Vector2d& c) {
+    return Eigen::Vector2d(0.0, 0.02 * std::sin(2 * M_PI * c.y() / 50.0));
+  };
+  auto left = Diagnose(Generate(s));
+  ASSERT_TRUE(left.ok());
+  EXPECT_EQ(left->unexplained_test, "lack_of_fit");
+  EXPECT_TRUE(left->unexplained) << left->Summary();
+  EXPECT_LT(left->unexplained_p, 1e-6);
+}
+
 TEST(Diagnose, TooFewPositionsAndBadOptionsAreRefused) {
   FieldData d;
   d.origin = "tiny.csv";
