@@ -111,6 +111,17 @@ std::string Describe(const std::string& name) {
   return it == kWords.end() ? name : it->second;
 }
 
+// The report of an effect as it enters the model.
+EffectReport Entered(const Effect& e, double delta_bic, double cv_rms_mm) {
+  EffectReport rep;
+  rep.name = e.name();
+  rep.meaning = e.meaning();
+  rep.param_names = e.param_names();
+  rep.delta_bic = delta_bic;
+  rep.cv_rms_mm = cv_rms_mm;
+  return rep;
+}
+
 }  // namespace
 
 Status DiagnoseOptions::Validate() const {
@@ -225,13 +236,7 @@ Result<Diagnosis> Diagnose(const FieldData& data, const DiagnoseOptions& o) {
       break;
     }
     if (taken != nullptr) {
-      EffectReport rep;
-      rep.name = taken->effect->name();
-      rep.meaning = taken->effect->meaning();
-      rep.param_names = taken->effect->param_names();
-      rep.delta_bic = taken->bic - bic;
-      rep.cv_rms_mm = taken_cv;
-      d.effects.push_back(rep);
+      d.effects.push_back(Entered(*taken->effect, taken->bic - bic, taken_cv));
       current.push_back(taken->effect);
       bic = taken->bic;
       cv = taken_cv;
@@ -276,13 +281,7 @@ Result<Diagnosis> Diagnose(const FieldData& data, const DiagnoseOptions& o) {
     }
     if (pair == nullptr) break;
     for (const Candidate* c : {pair->a, pair->b}) {
-      EffectReport rep;
-      rep.name = c->effect->name();
-      rep.meaning = c->effect->meaning();
-      rep.param_names = c->effect->param_names();
-      rep.delta_bic = pair->bic - bic;  // of the pair
-      rep.cv_rms_mm = pair_cv;
-      d.effects.push_back(rep);
+      d.effects.push_back(Entered(*c->effect, pair->bic - bic, pair_cv));  // BIC of the pair
       current.push_back(c->effect);
     }
     bic = pair->bic;
