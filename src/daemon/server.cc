@@ -1,0 +1,326 @@
+#include "insitu/daemon/server.h"
+
+#define ASIO_STANDALONE
+#include <asio.hpp>
+#include <atomic>
+#include <condition_variable>
+#include <deque>
+#include <mutex>
+#include <set>
+#include <thread>
+
+#include "insitu/core/log.h"
+
+namespace insitu::daemon {
+namespace {
+
+// Compares every byte whatever the first difference (the token is a secret).
+bool EqualConstantTime(const std::string& a, const std::string& b) {
+  unsigned diff = a.size() != b.size();
+  const size_t n = std::max(a.size(), b.size());
+  for (size_t i = 0; i < n; ++i) {
+    diff |= static_cast<unsigned char>(i < a.size() ? a[i] : 0) ^
+            static_cast<unsigned char>(i < b.size() ? b[i] : 0);
+  }
+  return diff == 0;
+}
+
+}  // namespace
+
+Status ServerOptions::Validate() const {
+  if (port < 0 || port > 65535) return InvalidArgument("port must be in 0..65535");
+  if (max_line_bytes < 64) return InvalidArgument("max_line_bytes must be >= 64");
+  if (max_clients < 1) return InvalidArgument("max_clients must be >= 1");
+  if (!(idle_timeout_s > 0)) return InvalidArgument("idle_timeout_s must be > 0");
+  asio::error_code ec;
+  asio::ip::make_address(bind_address, ec);
+  if (ec) return InvalidArgument("bind_address '" + bind_address + "' is not an IP address");
+  return Status::Ok();
+}
+
+struct Server::Impl {
+  class Session;
+
+  explicit Impl(ServerOptions o) : options(std::move(o)), acceptor(io) {}
+
+  ServerOptions options;
+  asio::io_context io;
+  asio::ip::tcp::acceptor acceptor;
+  std::thread thread;
+  std::set<std::shared_ptr<Session>> sessions;  // touched on the io thread only
+  std::atomic<int> clients{0};
+  StateMachine state;
+  int bound_port = 0;
+  std::mutex shutdown_mutex;
+  std::condition_variable shutdown_cv;
+  bool shutdown = false;
+  bool running = false;
+  std::shared_ptr<spdlog::logger> log = Logger("daemon");
+
+  void Accept();
+  void Broadcast(const std::string& line);  // io thread
+  void RequestShutdown() {
+    std::lock_guard<std::mutex> lock(shutdown_mutex);
+    shutdown = true;
+    shutdown_cv.notify_all();
+  }
+};
+
+class Server::Impl::Session : public std::enable_shared_from_this<Session> {
+ public:
+  Session(Impl* server, asio::ip::tcp::socket socket)
+      : server_(server),
+        socket_(std::move(socket)),
+        buffer_(server->options.max_line_bytes + 1),
+        timer_(server->io) {
+    asio::error_code ec;
+    const auto ep = socket_.remote_endpoint(ec);
+    peer_ = ec ? std::string("?") : ep.address().to_string() + ":" + std::to_string(ep.port());
+  }
+
+  void Begin() {
+    ArmTimer();
+    Read();
+  }
+
+  void Send(const std::string& line) {
+    const bool idle = out_.empty();
+    out_.push_back(line);
+    if (idle) WriteNext();
+  }
+
+  // Sends the last line, then closes (auth failures, over-long lines).
+  void SendAndClose(const std::string& line) {
+    closing_ = true;
+    Send(line);
+  }
+
+  void Close() {
+    if (closed_) return;
+    closed_ = true;
+    asio::error_code ec;
+    timer_.cancel();
+    socket_.shutdown(asio::ip::tcp::socket::shutdown_both, ec);
+    socket_.close(ec);
+    server_->clients--;
+    server_->sessions.erase(shared_from_this());
+  }
+
+  bool subscribed() const { return subscribed_; }
+
+ private:
+  void ArmTimer() {
+    timer_.expires_after(
+        std::chrono::milliseconds(static_cast<int64_t>(server_->options.idle_timeout_s * 1000.0)));
+    timer_.async_wait([self = shared_from_this()](const asio::error_code& ec) {
+      if (ec) return;  // re-armed or cancelled
+      self->server_->log->info("closing {}: idle for {} s", self->peer_,
+                               self->server_->options.idle_timeout_s);
+      self->SendAndClose(ReplyError(nullptr, "idle_timeout", "no complete line for too long"));
+    });
+  }
+
+  void Read() {
+    asio::async_read_until(
+        socket_, buffer_, '\n', [self = shared_from_this()](const asio::error_code& ec, size_t n) {
+          if (self->closed_) return;
+          if (ec == asio::error::not_found) {
+            // The buffer filled without a newline: the line is over the limit.
+            self->SendAndClose(
+                ReplyError(nullptr, "line_too_long",
+                           "a line over " + std::to_string(self->server_->options.max_line_bytes) +
+                               " bytes; closing the connection"));
+            return;
+          }
+          if (ec) {
+            self->Close();  // the client went away (or the server stops)
+            return;
+          }
+          std::string line(asio::buffers_begin(self->buffer_.data()),
+                           asio::buffers_begin(self->buffer_.data()) + n - 1);
+          self->buffer_.consume(n);
+          self->ArmTimer();
+          self->Handle(line);
+          if (!self->closing_ && !self->closed_) self->Read();
+        });
+  }
+
+  void WriteNext() {
+    asio::async_write(socket_, asio::buffer(out_.front()),
+                      [self = shared_from_this()](const asio::error_code& ec, size_t) {
+                        if (self->closed_) return;
+                        if (ec) {
+                          self->Close();
+                          return;
+                        }
+                        self->out_.pop_front();
+                        if (!self->out_.empty()) {
+                          self->WriteNext();
+                        } else if (self->closing_) {
+                          self->Close();
+                        }
+                      });
+  }
+
+  void Handle(const std::string& line) {
+    const ParsedLine p = ParseRequest(line, server_->options.max_line_bytes);
+    if (!p.ok) {
+      Send(ReplyError(p.error.id, p.error.code, p.error.message));
+      return;
+    }
+    const Request& r = p.request;
+    const std::string& token = server_->options.token;
+    if (!token.empty() && !authed_) {
+      if (r.cmd != "auth") {
+        server_->log->warn("refused {}: '{}' before auth", peer_, r.cmd.substr(0, 32));
+        SendAndClose(
+            ReplyError(r.id, "unauthorized", "authenticate first: {\"cmd\": \"auth\", ...}"));
+        return;
+      }
+      const bool ok = r.body.contains("token") && r.body["token"].is_string() &&
+                      EqualConstantTime(r.body["token"].get<std::string>(), token);
+      if (!ok) {
+        server_->log->warn("refused {}: wrong token", peer_);  // never the token itself
+        SendAndClose(ReplyError(r.id, "unauthorized", "wrong token"));
+        return;
+      }
+      authed_ = true;
+      Send(ReplyOk(r.id));
+      return;
+    }
+    if (const auto error = CheckRequest(r)) {
+      Send(ReplyError(error->id, error->code, error->message));
+      return;
+    }
+    StateMachine& state = server_->state;
+    if (r.cmd == "auth") {
+      authed_ = true;  // no token configured: nothing to check
+      Send(ReplyOk(r.id));
+    } else if (r.cmd == "ping") {
+      Send(ReplyOk(r.id, {{"pong", true}}));
+    } else if (r.cmd == "status") {
+      Send(ReplyOk(r.id, {{"state", StateName(state.state())},
+                          {"reason", state.last_reason()},
+                          {"clients", server_->clients.load()}}));
+    } else if (r.cmd == "arm" || r.cmd == "disarm") {
+      const Status st = r.cmd == "arm" ? state.Arm() : state.Disarm();
+      Send(st.ok() ? ReplyOk(r.id, {{"state", StateName(state.state())}}) : ReplyError(r.id, st));
+    } else if (r.cmd == "subscribe") {
+      subscribed_ = true;
+      Send(ReplyOk(r.id, {{"state", StateName(state.state())}}));
+    } else if (r.cmd == "shutdown") {
+      server_->log->info("shutdown asked by {}", peer_);
+      Send(ReplyOk(r.id));
+      server_->RequestShutdown();
+    } else {
+      Send(ReplyError(r.id, "not_implemented", r.cmd + " is not served by this build yet"));
+    }
+  }
+
+  Impl* server_;
+  asio::ip::tcp::socket socket_;
+  asio::streambuf buffer_;
+  asio::steady_timer timer_;
+  std::deque<std::string> out_;
+  std::string peer_;
+  bool authed_ = false, subscribed_ = false, closing_ = false, closed_ = false;
+};
+
+void Server::Impl::Accept() {
+  acceptor.async_accept([this](const asio::error_code& ec, asio::ip::tcp::socket socket) {
+    if (ec) {
+      if (ec != asio::error::operation_aborted) log->warn("accept: {}", ec.message());
+      if (acceptor.is_open()) Accept();
+      return;
+    }
+    auto session = std::make_shared<Session>(this, std::move(socket));
+    sessions.insert(session);
+    if (++clients > options.max_clients) {
+      session->SendAndClose(ReplyError(
+          nullptr, "too_many_clients",
+          "the daemon serves " + std::to_string(options.max_clients) + " clients at most"));
+    } else {
+      session->Begin();
+    }
+    Accept();
+  });
+}
+
+void Server::Impl::Broadcast(const std::string& line) {
+  for (const auto& s : std::vector<std::shared_ptr<Session>>(sessions.begin(), sessions.end())) {
+    if (s->subscribed()) s->Send(line);
+  }
+}
+
+Server::Server(ServerOptions options) : impl_(std::make_unique<Impl>(std::move(options))) {
+  impl_->state.AddListener([impl = impl_.get()](MachineState from, MachineState to,
+                                                const std::string& reason) {
+    const std::string line =
+        EventLine("state", {{"from", StateName(from)}, {"to", StateName(to)}, {"reason", reason}});
+    asio::post(impl->io, [impl, line] { impl->Broadcast(line); });
+  });
+}
+
+Server::~Server() { Stop(); }
+
+Status Server::Start() {
+  INSITU_RETURN_IF_ERROR(impl_->options.Validate());
+  asio::error_code ec;
+  const asio::ip::tcp::endpoint ep(asio::ip::make_address(impl_->options.bind_address),
+                                   static_cast<unsigned short>(impl_->options.port));
+  impl_->acceptor.open(ep.protocol(), ec);
+  if (!ec) impl_->acceptor.set_option(asio::socket_base::reuse_address(true), ec);
+  if (!ec) impl_->acceptor.bind(ep, ec);
+  if (!ec) impl_->acceptor.listen(asio::socket_base::max_listen_connections, ec);
+  if (ec) {
+    return Status(StatusCode::kDeviceError, "cannot listen on " + impl_->options.bind_address +
+                                                ":" + std::to_string(impl_->options.port) + ": " +
+                                                ec.message());
+  }
+  impl_->bound_port = impl_->acceptor.local_endpoint().port();
+  impl_->Accept();
+  impl_->running = true;
+  impl_->thread = std::thread([impl = impl_.get()] {
+    // Handlers catch nothing on purpose: a handler that threw would be a bug. Logged, and the
+    // loop goes on so one bad connection cannot take the daemon down.
+    for (;;) {
+      try {
+        impl->io.run();
+        return;
+      } catch (const std::exception& e) {
+        impl->log->error("handler failed: {}", e.what());
+      }
+    }
+  });
+  impl_->log->info("listening on {}:{}", impl_->options.bind_address, impl_->bound_port);
+  return Status::Ok();
+}
+
+int Server::port() const { return impl_->bound_port; }
+
+void Server::Stop() {
+  if (!impl_->running) return;
+  impl_->running = false;
+  asio::post(impl_->io, [impl = impl_.get()] {
+    asio::error_code ec;
+    impl->acceptor.close(ec);
+    for (const auto& s : std::vector<std::shared_ptr<Impl::Session>>(impl->sessions.begin(),
+                                                                     impl->sessions.end())) {
+      s->Close();
+    }
+    impl->io.stop();
+  });
+  if (impl_->thread.joinable()) impl_->thread.join();
+  impl_->RequestShutdown();
+}
+
+void Server::WaitForShutdown() {
+  std::unique_lock<std::mutex> lock(impl_->shutdown_mutex);
+  impl_->shutdown_cv.wait(lock, [this] { return impl_->shutdown; });
+}
+
+StateMachine& Server::state() { return impl_->state; }
+
+int Server::connected_clients() const { return impl_->clients.load(); }
+
+}  // namespace insitu::daemon

@@ -1,0 +1,96 @@
+// insitud as a process: started with a config on a free loopback port, it answers ping,
+// exits 0 on a client's shutdown and on SIGTERM, and refuses a bad config with one line and
+// exit code 2.
+#define ASIO_STANDALONE
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <asio.hpp>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Daemon {
+  pid_t pid = -1;
+  int port = 0;
+};
+
+// Starts insitud with `config_text`; reads the port from its "listening on" line.
+Daemon Start(const std::string& config_text) {
+  const fs::path cfg = fs::temp_directory_path() / "insitud_test.yaml";
+  std::ofstream(cfg) << config_text;
+  int out[2];
+  EXPECT_EQ(pipe(out), 0);
+  Daemon d;
+  d.pid = fork();
+  if (d.pid == 0) {
+    dup2(out[1], STDOUT_FILENO);
+    close(out[0]);
+    execl(INSITUD_BIN, INSITUD_BIN, "--config", cfg.c_str(), static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  close(out[1]);
+  FILE* f = fdopen(out[0], "r");
+  char line[256] = {0};
+  if (fgets(line, sizeof line, f) != nullptr) {
+    const std::string s(line);
+    const auto colon = s.rfind(':');
+    if (s.find("listening on") != std::string::npos && colon != std::string::npos) {
+      d.port = std::stoi(s.substr(colon + 1));
+    }
+  }
+  fclose(f);
+  return d;
+}
+
+int ExitCode(pid_t pid) {
+  int status = 0;
+  waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+nlohmann::json Call(asio::ip::tcp::socket& s, const std::string& line) {
+  asio::write(s, asio::buffer(line + "\n"));
+  asio::streambuf buf;
+  asio::error_code ec;
+  const size_t n = asio::read_until(s, buf, '\n', ec);
+  if (ec) return nullptr;
+  return nlohmann::json::parse(
+      std::string(asio::buffers_begin(buf.data()), asio::buffers_begin(buf.data()) + n - 1),
+      nullptr, false);
+}
+
+TEST(Insitud, ServesUntilShutdownOrSigterm) {
+  {
+    const Daemon d = Start("version: 1\nport: 0\n");
+    ASSERT_GT(d.port, 0);
+    asio::io_context io;
+    asio::ip::tcp::socket s(io);
+    s.connect({asio::ip::make_address("127.0.0.1"), static_cast<unsigned short>(d.port)});
+    EXPECT_EQ(Call(s, R"({"id": 1, "cmd": "ping"})")["pong"], true);
+    EXPECT_EQ(Call(s, R"({"id": 2, "cmd": "shutdown"})")["ok"], true);
+    EXPECT_EQ(ExitCode(d.pid), 0);
+  }
+  {
+    const Daemon d = Start("version: 1\nport: 0\n");
+    ASSERT_GT(d.port, 0);
+    kill(d.pid, SIGTERM);
+    EXPECT_EQ(ExitCode(d.pid), 0);
+  }
+}
+
+TEST(Insitud, ABadConfigIsOneLineAndExit2) {
+  const Daemon d = Start("version: 1\nport: 70000\n");
+  EXPECT_EQ(d.port, 0);
+  EXPECT_EQ(ExitCode(d.pid), 2);
+}
+
+}  // namespace
