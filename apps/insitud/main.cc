@@ -26,7 +26,6 @@ namespace {
 
 struct DaemonConfig {
   insitu::daemon::ServerOptions server;
-  std::string results_dir = "insitu-results";
   std::string log_level = "info";
 };
 
@@ -36,8 +35,8 @@ insitu::Result<DaemonConfig> ReadConfig(const std::string& path) {
   insitu::ConfigReader r(root);
   DaemonConfig c;
   const std::vector<std::string> known{
-      "version",     "bind_address",   "port",        "token",          "token_file",
-      "results_dir", "max_line_bytes", "max_clients", "idle_timeout_s", "log_level"};
+      "version",  "bind_address",   "port",        "token",          "token_file", "results_dir",
+      "jobs_dir", "max_line_bytes", "max_clients", "idle_timeout_s", "log_level"};
   for (const std::string& key : root.Keys()) {
     if (std::find(known.begin(), known.end(), key) == known.end()) {
       std::fprintf(stderr, "insitud: warning: %s: unknown key, ignored\n",
@@ -54,7 +53,8 @@ insitu::Result<DaemonConfig> ReadConfig(const std::string& path) {
   r.Read("token", &c.server.token);
   std::string token_file;
   r.Read("token_file", &token_file);
-  r.Read("results_dir", &c.results_dir);
+  r.Read("results_dir", &c.server.results_dir);
+  r.Read("jobs_dir", &c.server.jobs_dir);
   int max_line = static_cast<int>(c.server.max_line_bytes);
   r.Read("max_line_bytes", &max_line);
   c.server.max_line_bytes = static_cast<size_t>(std::max(0, max_line));

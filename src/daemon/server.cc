@@ -1,15 +1,22 @@
 #include "insitu/daemon/server.h"
 
 #define ASIO_STANDALONE
+#include <algorithm>
 #include <asio.hpp>
 #include <atomic>
 #include <condition_variable>
 #include <deque>
+#include <filesystem>
+#include <fstream>
 #include <mutex>
 #include <set>
+#include <sstream>
 #include <thread>
 
 #include "insitu/core/log.h"
+#include "insitu/daemon/results.h"
+#include "insitu/job/job_file.h"
+#include "insitu/job/runner.h"
 
 namespace insitu::daemon {
 namespace {
@@ -51,6 +58,26 @@ struct Server::Impl {
   std::atomic<int> clients{0};
   StateMachine state;
   int bound_port = 0;
+  std::unique_ptr<ResultsStore> store;
+  // The one job at a time (worker thread), its id and its cancel flag.
+  std::mutex job_mutex;
+  std::thread worker;
+  bool job_active = false;
+  std::string job_id;
+  std::atomic<bool> cancel{false};
+
+  std::string Run(const Request& r);
+  std::string Cancel(const Request& r);
+  std::string ResultOf(const Request& r);
+  std::string ListResults(const Request& r);
+  void JoinWorker() {
+    std::thread w;
+    {
+      std::lock_guard<std::mutex> lock(job_mutex);
+      w = std::move(worker);
+    }
+    if (w.joinable()) w.join();
+  }
   std::mutex shutdown_mutex;
   std::condition_variable shutdown_cv;
   bool shutdown = false;
@@ -208,12 +235,20 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
     } else if (r.cmd == "subscribe") {
       subscribed_ = true;
       Send(ReplyOk(r.id, {{"state", StateName(state.state())}}));
+    } else if (r.cmd == "run") {
+      Send(server_->Run(r));
+    } else if (r.cmd == "cancel") {
+      Send(server_->Cancel(r));
+    } else if (r.cmd == "result") {
+      Send(server_->ResultOf(r));
+    } else if (r.cmd == "list_results") {
+      Send(server_->ListResults(r));
     } else if (r.cmd == "shutdown") {
       server_->log->info("shutdown asked by {}", peer_);
       Send(ReplyOk(r.id));
       server_->RequestShutdown();
     } else {
-      Send(ReplyError(r.id, "not_implemented", r.cmd + " is not served by this build yet"));
+      Send(ReplyError(r.id, "internal", r.cmd + ": in the command table but without a handler"));
     }
   }
 
@@ -252,6 +287,114 @@ void Server::Impl::Broadcast(const std::string& line) {
   }
 }
 
+namespace {
+
+nlohmann::json RecordJson(const JobRecord& r) {
+  return {{"job_id", r.id},     {"job", r.job},         {"status", r.status},
+          {"reason", r.reason}, {"started", r.started}, {"finished", r.finished}};
+}
+
+}  // namespace
+
+std::string Server::Impl::Run(const Request& r) {
+  std::vector<std::string> sets;
+  if (r.body.contains("set")) {
+    for (auto it = r.body["set"].begin(); it != r.body["set"].end(); ++it) {
+      const nlohmann::json& v = it.value();
+      sets.push_back(it.key() + "=" + (v.is_string() ? v.get<std::string>() : v.dump()));
+    }
+  }
+  const nlohmann::json& spec = r.body["job"];
+  Result<job::LoadedJob> loaded =
+      spec.is_string()
+          ? job::LoadJobFile(job::ResolvePath(options.jobs_dir, spec.get<std::string>()), sets)
+          : job::LoadJobText(spec.dump(), "<run request>", options.jobs_dir, sets);
+  if (!loaded.ok()) return ReplyError(r.id, loaded.status());
+  const std::vector<std::string> kinds = job::JobKinds();
+  if (std::find(kinds.begin(), kinds.end(), loaded->kind) == kinds.end()) {
+    std::string known;
+    for (const std::string& k : kinds) known += (known.empty() ? "" : ", ") + k;
+    return ReplyError(
+        r.id, "bad_argument",
+        loaded->path + ": unknown job kind '" + loaded->kind + "' (known: " + known + ")");
+  }
+  std::thread previous;
+  {
+    std::lock_guard<std::mutex> lock(job_mutex);
+    if (job_active) {
+      return ReplyError(r.id, "wrong_state", "job " + job_id + " is running: one job at a time");
+    }
+    const Status started = state.Start();
+    if (!started.ok()) return ReplyError(r.id, started);
+    auto record = store->Begin(loaded->kind);
+    if (!record.ok()) {
+      (void)state.Finish(JobOutcome::kFaulted, record.status().message());
+      return ReplyError(r.id, record.status());
+    }
+    previous = std::move(worker);  // a finished job's thread
+    job_active = true;
+    job_id = record->id;
+    cancel = false;
+    worker = std::thread([this, job = *loaded, rec = *record] {
+      job::RunOptions run;
+      run.out_dir = rec.dir;
+      run.cancel = &cancel;
+      const auto report = job::RunJob(job, run);
+      const bool cancelled =
+          cancel.load() || (!report.ok() && report.status().code() == StatusCode::kCancelled);
+      const std::string status = report.ok() && report->ok ? "done"
+                                 : cancelled               ? "cancelled"
+                                                           : "faulted";
+      const std::string reason = report.ok() ? report->error : report.status().message();
+      (void)store->Finish(rec.id, status, status == "done" ? "" : reason);
+      (void)state.Finish(status == "done"        ? JobOutcome::kDone
+                         : status == "cancelled" ? JobOutcome::kCancelled
+                                                 : JobOutcome::kFaulted,
+                         reason);
+      const std::string event =
+          EventLine("job", {{"job_id", rec.id}, {"status", status}, {"reason", reason}});
+      {
+        std::lock_guard<std::mutex> lock(job_mutex);
+        job_active = false;
+      }
+      asio::post(io, [this, event] { Broadcast(event); });
+    });
+  }
+  if (previous.joinable()) previous.join();
+  // After the reply (posted: it runs once this request's handler has sent it).
+  const std::string event =
+      EventLine("job", {{"job_id", job_id}, {"status", "running"}, {"job", loaded->kind}});
+  asio::post(io, [this, event] { Broadcast(event); });
+  return ReplyOk(r.id, {{"job_id", job_id}, {"job", loaded->kind}});
+}
+
+std::string Server::Impl::Cancel(const Request& r) {
+  std::lock_guard<std::mutex> lock(job_mutex);
+  if (!job_active) return ReplyError(r.id, "wrong_state", "no job is running");
+  cancel = true;
+  return ReplyOk(r.id, {{"job_id", job_id}});
+}
+
+std::string Server::Impl::ResultOf(const Request& r) {
+  auto record = store->Get(r.body["job_id"].get<std::string>());
+  if (!record.ok()) return ReplyError(r.id, record.status());
+  nlohmann::json report;  // null until the job has written one
+  std::ifstream f(std::filesystem::path(record->dir) / "report.json");
+  if (f) {
+    std::stringstream ss;
+    ss << f.rdbuf();
+    report = nlohmann::json::parse(ss.str(), nullptr, false);
+    if (report.is_discarded()) report = nullptr;
+  }
+  return ReplyOk(r.id, {{"result", RecordJson(*record)}, {"report", report}});
+}
+
+std::string Server::Impl::ListResults(const Request& r) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const JobRecord& rec : store->List()) list.push_back(RecordJson(rec));
+  return ReplyOk(r.id, {{"results", list}});
+}
+
 Server::Server(ServerOptions options) : impl_(std::make_unique<Impl>(std::move(options))) {
   impl_->state.AddListener([impl = impl_.get()](MachineState from, MachineState to,
                                                 const std::string& reason) {
@@ -265,6 +408,15 @@ Server::~Server() { Stop(); }
 
 Status Server::Start() {
   INSITU_RETURN_IF_ERROR(impl_->options.Validate());
+  {
+    auto store = ResultsStore::Open(impl_->options.results_dir);
+    if (!store.ok()) return store.status();
+    if (store->interrupted_at_open() > 0) {
+      impl_->log->warn("{} job(s) were running when the daemon last stopped: marked interrupted",
+                       store->interrupted_at_open());
+    }
+    impl_->store = std::make_unique<ResultsStore>(std::move(*store));
+  }
   asio::error_code ec;
   const asio::ip::tcp::endpoint ep(asio::ip::make_address(impl_->options.bind_address),
                                    static_cast<unsigned short>(impl_->options.port));
@@ -301,6 +453,8 @@ int Server::port() const { return impl_->bound_port; }
 void Server::Stop() {
   if (!impl_->running) return;
   impl_->running = false;
+  impl_->cancel = true;  // a running job stops at its next check; its state is saved
+  impl_->JoinWorker();
   asio::post(impl_->io, [impl = impl_.get()] {
     asio::error_code ec;
     impl->acceptor.close(ec);

@@ -10,12 +10,11 @@ std::string ResolvePath(const std::string& folder, const std::string& path) {
   return (fs::path(folder) / path).lexically_normal().string();
 }
 
-Result<LoadedJob> LoadJobFile(const std::string& path, const std::vector<std::string>& sets) {
-  LoadedJob job;
-  job.path = path;
-  job.folder = fs::path(path).parent_path().string();
-  if (job.folder.empty()) job.folder = ".";
-  INSITU_ASSIGN_OR_RETURN(job.root, ConfigNode::LoadFile(path));
+namespace {
+
+// The rest of loading, once the document is read: world, world_changes, --set, the kind.
+Result<LoadedJob> Expand(LoadedJob job, const std::vector<std::string>& sets) {
+  const std::string& path = job.path;
   if (!job.root.IsMap()) return ParseError(path + ": a job file is a YAML map with a 'job:' key");
   const ConfigNode world = job.root.Child("world");
   if (world.IsDefined()) {
@@ -31,7 +30,8 @@ Result<LoadedJob> LoadJobFile(const std::string& path, const std::vector<std::st
   // operator put on the stage and where.
   const ConfigNode changes = job.root.Child("world_changes");
   if (changes.IsDefined()) {
-    if (!changes.IsMap()) return InvalidArgument(changes.Where() + ": expected a map of world keys");
+    if (!changes.IsMap())
+      return InvalidArgument(changes.Where() + ": expected a map of world keys");
     if (!job.world.IsDefined()) {
       return InvalidArgument(changes.Where() + ": the job names no world: file to change");
     }
@@ -53,9 +53,30 @@ Result<LoadedJob> LoadJobFile(const std::string& path, const std::vector<std::st
     }
   }
   const ConfigNode kind = job.root.Child("job");
-  if (!kind.IsDefined()) return InvalidArgument(path + ": missing 'job:' (the job kind, e.g. scan)");
+  if (!kind.IsDefined())
+    return InvalidArgument(path + ": missing 'job:' (the job kind, e.g. scan)");
   INSITU_ASSIGN_OR_RETURN(job.kind, kind.AsString());
   return job;
+}
+
+}  // namespace
+
+Result<LoadedJob> LoadJobFile(const std::string& path, const std::vector<std::string>& sets) {
+  LoadedJob job;
+  job.path = path;
+  job.folder = fs::path(path).parent_path().string();
+  if (job.folder.empty()) job.folder = ".";
+  INSITU_ASSIGN_OR_RETURN(job.root, ConfigNode::LoadFile(path));
+  return Expand(std::move(job), sets);
+}
+
+Result<LoadedJob> LoadJobText(const std::string& text, const std::string& origin,
+                              const std::string& folder, const std::vector<std::string>& sets) {
+  LoadedJob job;
+  job.path = origin;
+  job.folder = folder.empty() ? "." : folder;
+  INSITU_ASSIGN_OR_RETURN(job.root, ConfigNode::Parse(text, origin));
+  return Expand(std::move(job), sets);
 }
 
 namespace {

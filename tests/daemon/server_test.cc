@@ -5,11 +5,13 @@
 
 #define ASIO_STANDALONE
 #include <gtest/gtest.h>
-#include <sys/socket.h>
-#include <sys/time.h>
+#include <poll.h>
 
+#include <algorithm>
 #include <asio.hpp>
 #include <atomic>
+#include <deque>
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <thread>
@@ -18,17 +20,21 @@
 namespace insitu::daemon {
 namespace {
 
-// A blocking client with a 5 s receive timeout (a hung daemon fails the test, never hangs it).
+// A blocking client whose reads give up after 10 s (a hung daemon fails the test, never hangs it).
 class Client {
  public:
   explicit Client(int port) : socket_(io_) {
     socket_.connect({asio::ip::make_address("127.0.0.1"), static_cast<unsigned short>(port)});
-    timeval tv{5, 0};
-    setsockopt(socket_.native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
   }
   void SendRaw(const std::string& bytes) { asio::write(socket_, asio::buffer(bytes)); }
-  // The next line, without its newline; "" when the connection closed (or timed out).
+  // The next line, without its newline; "" when the connection closed (or timed out). Events
+  // that arrived while a call waited for its reply come first.
   std::string ReadLine() {
+    if (!pending_.empty()) {
+      std::string line = pending_.front();
+      pending_.pop_front();
+      return line;
+    }
     asio::error_code ec;
     const size_t n = asio::read_until(socket_, buffer_, '\n', ec);
     if (ec) return "";
@@ -37,23 +43,56 @@ class Client {
     buffer_.consume(n);
     return line;
   }
+  // Sends a request and returns its reply; events that come first are kept for ReadLine.
   nlohmann::json Call(const std::string& line) {
     SendRaw(line + "\n");
-    const std::string reply = ReadLine();
-    return reply.empty() ? nlohmann::json() : nlohmann::json::parse(reply, nullptr, false);
+    for (;;) {
+      const std::string reply = NextLine();
+      if (reply.empty()) return nlohmann::json();
+      const auto j = nlohmann::json::parse(reply, nullptr, false);
+      if (j.is_object() && j.contains("event")) {
+        pending_.push_back(reply);
+        continue;
+      }
+      return j;
+    }
   }
   bool Closed() { return ReadLine().empty(); }
 
  private:
+  // One line from the socket, waiting at most 10 s for it (poll: asio's blocking reads ignore
+  // SO_RCVTIMEO); "" on close or timeout.
+  std::string NextLine() {
+    for (;;) {
+      const auto begin = asio::buffers_begin(buffer_.data());
+      const auto end = asio::buffers_end(buffer_.data());
+      const auto nl = std::find(begin, end, '\n');
+      if (nl != end) {
+        std::string line(begin, nl);
+        buffer_.consume(line.size() + 1);
+        return line;
+      }
+      pollfd p{socket_.native_handle(), POLLIN, 0};
+      if (poll(&p, 1, 10000) <= 0) return "";
+      asio::error_code ec;
+      const size_t n = socket_.read_some(buffer_.prepare(4096), ec);
+      if (ec || n == 0) return "";
+      buffer_.commit(n);
+    }
+  }
+
   asio::io_context io_;
   asio::ip::tcp::socket socket_;
   asio::streambuf buffer_;
+  std::deque<std::string> pending_;
 };
 
-ServerOptions Loopback() {
+ServerOptions Loopback(const char* results = "insitu_server_test_results") {
   ServerOptions o;
   o.port = 0;
   o.max_line_bytes = 4096;
+  o.results_dir = (std::filesystem::temp_directory_path() / results).string();
+  o.jobs_dir = INSITU_SOURCE_DIR;
   return o;
 }
 
@@ -76,8 +115,8 @@ TEST(Server, ServesTheStateCommandsAndEvents) {
   EXPECT_EQ(operator_.Call(R"({"id": 3, "cmd": "status"})")["state"], "armed");
   EXPECT_EQ(operator_.Call(R"({"id": 4, "cmd": "disarm"})")["state"], "idle");
   EXPECT_EQ(nlohmann::json::parse(watcher.ReadLine())["to"], "idle");
-  // Not served yet: a clear error, not a silence.
-  EXPECT_EQ(operator_.Call(R"({"id": 5, "cmd": "cancel"})")["error"]["code"], "not_implemented");
+  // Nothing to cancel: a clear error, not a silence.
+  EXPECT_EQ(operator_.Call(R"({"id": 5, "cmd": "cancel"})")["error"]["code"], "wrong_state");
 }
 
 TEST(Server, HostileInputIsAnsweredAndTheDaemonStaysUp) {
@@ -158,6 +197,88 @@ TEST(Server, BadOptionsAndABusyPortAreNamed) {
   const Status busy = Server(same).Start();
   EXPECT_EQ(busy.code(), StatusCode::kDeviceError);
   EXPECT_NE(busy.message().find(std::to_string(first.port())), std::string::npos);
+}
+
+// Reads lines until a job event with a final status (done, faulted, cancelled).
+nlohmann::json WaitForJobEnd(Client& c) {
+  for (int k = 0; k < 200; ++k) {
+    const std::string line = c.ReadLine();
+    if (line.empty()) return nullptr;
+    const auto j = nlohmann::json::parse(line, nullptr, false);
+    if (j.is_object() && j.value("event", "") == "job" && j.value("status", "") != "running") {
+      return j;
+    }
+  }
+  return nullptr;
+}
+
+TEST(Server, RunsAScanJobAndKeepsItsResultAcrossARestart) {
+  std::filesystem::remove_all(std::filesystem::temp_directory_path() / "insitu_server_jobs");
+  std::string job_id;
+  {
+    Server server(Loopback("insitu_server_jobs"));
+    ASSERT_TRUE(server.Start().ok());
+    Client c(server.port());
+    // The shipped scan job, cut to 3 lines so it takes a second.
+    const std::string run = R"({"id": 1, "cmd": "run", "job": "config/jobs/scan_step_gauge.yaml",)"
+                            R"( "set": {"scan.x_start_mm": -3.0, "scan.x_end_mm": -2.0}})";
+    EXPECT_EQ(c.Call(run)["error"]["code"], "wrong_state");  // not armed
+    ASSERT_EQ(c.Call(R"({"id": 2, "cmd": "subscribe"})")["ok"], true);
+    ASSERT_EQ(c.Call(R"({"id": 3, "cmd": "arm"})")["ok"], true);
+    const auto started = c.Call(run);
+    ASSERT_EQ(started["ok"], true) << started.dump();
+    job_id = started["job_id"];
+    const auto done = WaitForJobEnd(c);
+    ASSERT_TRUE(done.is_object());
+    ASSERT_EQ(done["status"], "done") << done.dump();
+    EXPECT_EQ(done["job_id"], job_id);
+    const auto result = c.Call(R"({"id": 4, "cmd": "result", "job_id": ")" + job_id + R"("})");
+    EXPECT_EQ(result["result"]["status"], "done");
+    EXPECT_EQ(result["report"]["job"], "scan");
+    EXPECT_EQ(result["report"]["ok"], true);
+    EXPECT_GT(result["report"]["metrics"]["points"].get<double>(), 100.0);
+    EXPECT_EQ(c.Call(R"({"id": 5, "cmd": "status"})")["state"], "done");
+    // A bad job is refused before anything moves, by name.
+    ASSERT_EQ(c.Call(R"({"id": 6, "cmd": "arm"})")["ok"], true);
+    const auto reply = c.Call(R"({"id": 7, "cmd": "run", "job": {"job": "teleport"}})");
+    EXPECT_EQ(reply["ok"], false);
+    EXPECT_NE(reply["error"]["message"].get<std::string>().find("teleport"), std::string::npos);
+  }
+  Server again(Loopback("insitu_server_jobs"));
+  ASSERT_TRUE(again.Start().ok());
+  Client c(again.port());
+  const auto list = c.Call(R"({"id": 1, "cmd": "list_results"})");
+  ASSERT_EQ(list["results"].size(), 1u);
+  EXPECT_EQ(list["results"][0]["job_id"], job_id);
+  EXPECT_EQ(list["results"][0]["status"], "done");
+}
+
+TEST(Server, CancelStopsTheRunningJob) {
+  Server server(Loopback("insitu_server_cancel"));
+  ASSERT_TRUE(server.Start().ok());
+  Client c(server.port());
+  ASSERT_EQ(c.Call(R"({"id": 1, "cmd": "subscribe"})")["ok"], true);
+  ASSERT_EQ(c.Call(R"({"id": 2, "cmd": "arm"})")["ok"], true);
+  // The whole step-gauge scan: 57 lines, several seconds.
+  const auto started =
+      c.Call(R"({"id": 3, "cmd": "run", "job": "config/jobs/scan_step_gauge.yaml"})");
+  ASSERT_EQ(started["ok"], true) << started.dump();
+  // One job at a time.
+  EXPECT_EQ(
+      c.Call(
+          R"({"id": 4, "cmd": "run", "job": "config/jobs/scan_step_gauge.yaml"})")["error"]["code"],
+      "wrong_state");
+  EXPECT_EQ(c.Call(R"({"id": 5, "cmd": "disarm"})")["error"]["code"], "wrong_state");
+  EXPECT_EQ(c.Call(R"({"id": 6, "cmd": "cancel"})")["ok"], true);
+  const auto end = WaitForJobEnd(c);
+  ASSERT_TRUE(end.is_object());
+  EXPECT_EQ(end["status"], "cancelled") << end.dump();
+  EXPECT_EQ(c.Call(R"({"id": 7, "cmd": "status"})")["state"], "cancelled");
+  const auto result = c.Call(R"({"id": 8, "cmd": "result", "job_id": ")" +
+                             started["job_id"].get<std::string>() + "\"}");
+  EXPECT_EQ(result["result"]["status"], "cancelled");
+  EXPECT_TRUE(server.state().Disarm().ok());
+  EXPECT_FALSE(server.state().laser_allowed());
 }
 
 }  // namespace

@@ -3,11 +3,15 @@
 // before a handler sees it; a malformed line gets an error reply and the connection goes on;
 // a line over the limit, or a wrong token, closes that connection only. With a token
 // configured, a connection's first request must be `auth` (the token is never logged).
-// Clients that `subscribe` receive an event for every machine-state change.
+// Clients that `subscribe` receive an event for every machine-state change and for every job
+// that starts or ends.
 //
-// This increment serves auth, ping, status, arm, disarm, subscribe and shutdown; the
-// job-running commands (run, cancel, result, list_results) reply not_implemented until the
-// job runner is wired in. asio stays inside server.cc.
+// Jobs: `run` takes the same job files the CLI runs (a path, relative to jobs_dir, or the job
+// itself as an object) on an armed machine, one at a time (a second run is refused while one
+// runs); each job writes its report and artifacts into its own folder of the results store.
+// `cancel` stops it (the job stops at its next check, the head disarmed on every way out);
+// `result` and `list_results` read the store, which survives restarts. asio stays in
+// server.cc.
 #pragma once
 
 #include <cstddef>
@@ -27,6 +31,8 @@ struct ServerOptions {
   size_t max_line_bytes = kDefaultMaxLineBytes;
   int max_clients = 256;          // beyond: the connection is closed with an error line
   double idle_timeout_s = 300.0;  // a client silent this long (or stalled mid-line) is closed
+  std::string results_dir = "insitu-results";
+  std::string jobs_dir = ".";  // relative job paths and inline jobs' relative paths
 
   Status Validate() const;
 };
@@ -38,12 +44,14 @@ class Server {
   Server(const Server&) = delete;  // owns a listening socket and its threads
   Server& operator=(const Server&) = delete;
 
-  // Binds and starts serving on a background thread. Errors: invalid_argument for bad
-  // options; device_error when the address cannot be bound (in use, not local).
+  // Opens the results store, binds and starts serving on a background thread. Errors:
+  // invalid_argument for bad options; not_found for a results folder that cannot be made;
+  // device_error when the address cannot be bound (in use, not local).
   Status Start();
   // The bound port (after Start; the real one when options.port was 0).
   int port() const;
-  // Stops accepting, closes every connection, joins the thread. Idempotent.
+  // Cancels a running job and waits for it, stops accepting, closes every connection, joins
+  // the threads. Idempotent.
   void Stop();
   // Blocks until a client's `shutdown` or Stop().
   void WaitForShutdown();

@@ -4,8 +4,8 @@
 // backend) names a world file (config/worlds/); relative paths resolve against the job file's
 // folder. `world_changes:` (a map shaped like the world file) changes the world for this job:
 // the part on the stage, where it lies. `--set dotted.key=value` overrides any key of the job,
-// and keys under `world.` go to the world document, so `--set world.camera.k1=-0.08` works. Every error names the file, the
-// line and the key (or the --set that gave the value).
+// and keys under `world.` go to the world document, so `--set world.camera.k1=-0.08` works. Every
+// error names the file, the line and the key (or the --set that gave the value).
 #pragma once
 
 #include <string>
@@ -20,15 +20,19 @@
 namespace insitu::job {
 
 struct LoadedJob {
-  std::string kind;     // "scan", ...
-  std::string path;     // the job file
-  std::string folder;   // its folder, for relative paths
-  ConfigNode root;      // the job document, --set applied
-  ConfigNode world;     // the world document (undefined if the job names none), --set applied
+  std::string kind;    // "scan", ...
+  std::string path;    // the job file
+  std::string folder;  // its folder, for relative paths
+  ConfigNode root;     // the job document, --set applied
+  ConfigNode world;    // the world document (undefined if the job names none), --set applied
 };
 
 // Reads a job file, expands `world:`, applies the --set overrides ("key=value" each).
 Result<LoadedJob> LoadJobFile(const std::string& path, const std::vector<std::string>& sets);
+// The same for a job given as text (a daemon request): `origin` names it in messages,
+// relative paths resolve against `folder`.
+Result<LoadedJob> LoadJobText(const std::string& text, const std::string& origin,
+                              const std::string& folder, const std::vector<std::string>& sets);
 
 // Resolves a path from a job file: absolute stays, relative is taken from `folder`.
 std::string ResolvePath(const std::string& folder, const std::string& path);
