@@ -233,6 +233,11 @@ void ReadWorld(ConfigReader& r, sim::WorldOptions* w) {
   st.Read("plate_size_mm", &w->stage.plate_size_mm);
   if (st.ok()) st.FailFromValidate(w->stage.Validate());
 
+  ConfigReader& fa = r.Section("faults");
+  fa.Read("camera_timeout_at_frame", &w->faults.camera_timeout_at_frame);
+  fa.Read("scanner_error_at_command", &w->faults.scanner_error_at_command);
+  fa.Read("stage_stuck", &w->faults.stage_stuck);
+  if (fa.ok()) fa.FailFromValidate(w->faults.Validate());
   ConfigReader& b = r.Section("board");
   sim::BoardOptions& bo = w->board;
   b.Read("present", &bo.present);

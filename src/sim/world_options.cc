@@ -182,6 +182,15 @@ Status WorldOptions::Validate() const {
   INSITU_RETURN_IF_ERROR(part.Validate().Prefixed("part"));
   INSITU_RETURN_IF_ERROR(stage.Validate().Prefixed("stage"));
   INSITU_RETURN_IF_ERROR(board.Validate().Prefixed("board"));
+  INSITU_RETURN_IF_ERROR(faults.Validate().Prefixed("faults"));
+  return Status::Ok();
+}
+
+Status FaultOptions::Validate() const {
+  if (camera_timeout_at_frame < -1) return Bad("camera_timeout_at_frame", ">= -1", camera_timeout_at_frame);
+  if (scanner_error_at_command < -1) {
+    return Bad("scanner_error_at_command", ">= -1", scanner_error_at_command);
+  }
   return Status::Ok();
 }
 

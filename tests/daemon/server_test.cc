@@ -15,6 +15,7 @@
 #include <memory>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 namespace insitu::daemon {
@@ -251,6 +252,40 @@ TEST(Server, RunsAScanJobAndKeepsItsResultAcrossARestart) {
   ASSERT_EQ(list["results"].size(), 1u);
   EXPECT_EQ(list["results"][0]["job_id"], job_id);
   EXPECT_EQ(list["results"][0]["status"], "done");
+}
+
+// Each injected device fault ends its job Faulted with the reason, the machine out of Running
+// (the laser not allowed), the daemon answering, and the next job runs.
+TEST(Server, InjectedFaultsFaultTheJobNotTheDaemon) {
+  Server server(Loopback("insitu_server_faults"));
+  ASSERT_TRUE(server.Start().ok());
+  Client c(server.port());
+  ASSERT_EQ(c.Call(R"({"id": 1, "cmd": "subscribe"})")["ok"], true);
+  const std::string job =
+      R"("job": "config/jobs/scan_step_gauge.yaml", "set": {"scan.x_start_mm": -3.0, )"
+      R"("scan.x_end_mm": -2.0)";
+  const std::vector<std::pair<std::string, std::string>> faults{
+      {R"("world.faults.camera_timeout_at_frame": 1)", "camera timeout"},
+      {R"("world.faults.scanner_error_at_command": 1)", "scan head error"},
+  };
+  for (const auto& [fault, words] : faults) {
+    ASSERT_EQ(c.Call(R"({"id": 2, "cmd": "arm"})")["ok"], true);
+    const auto started = c.Call(R"({"id": 3, "cmd": "run", )" + job + ", " + fault + "}}");
+    ASSERT_EQ(started["ok"], true) << started.dump();
+    const auto end = WaitForJobEnd(c);
+    ASSERT_TRUE(end.is_object());
+    EXPECT_EQ(end["status"], "faulted") << end.dump();
+    EXPECT_NE(end["reason"].get<std::string>().find(words), std::string::npos) << end.dump();
+    EXPECT_EQ(c.Call(R"({"id": 4, "cmd": "status"})")["state"], "faulted");
+    EXPECT_FALSE(server.state().laser_allowed());
+    EXPECT_TRUE(Pong(c));
+  }
+  // The next job runs.
+  ASSERT_EQ(c.Call(R"({"id": 5, "cmd": "arm"})")["ok"], true);
+  ASSERT_EQ(c.Call(R"({"id": 6, "cmd": "run", )" + job + "}}")["ok"], true);
+  const auto end = WaitForJobEnd(c);
+  ASSERT_TRUE(end.is_object());
+  EXPECT_EQ(end["status"], "done") << end.dump();
 }
 
 TEST(Server, CancelStopsTheRunningJob) {

@@ -50,4 +50,26 @@ TEST(Machine, DevicesShareOneClock) {
 }
 
 }  // namespace
+// Injected device faults come back as device errors naming what failed; the head is
+// disarmed by its own fault; nothing else breaks.
+TEST(Machine, InjectedFaultsAreDeviceErrors) {
+  sim::WorldOptions w;
+  w.faults.camera_timeout_at_frame = 0;
+  w.faults.scanner_error_at_command = 0;
+  w.faults.stage_stuck = true;
+  Machine m = MakeSimMachine(std::make_shared<sim::SimWorld>(w));
+  const auto frame = m.camera->Grab();
+  ASSERT_FALSE(frame.ok());
+  EXPECT_EQ(frame.status().code(), StatusCode::kDeviceError);
+  EXPECT_NE(frame.status().message().find("camera timeout"), std::string::npos);
+  EXPECT_TRUE(m.camera->Grab().ok());  // the next frame arrives
+  ASSERT_TRUE(m.scanner->Arm().ok());
+  const Status line = m.scanner->StartPointerLine({0, -5, 0}, {0, 5, 0}, 1000.0);
+  EXPECT_EQ(line.code(), StatusCode::kDeviceError);
+  EXPECT_FALSE(m.scanner->armed());  // a faulted head is not left armed
+  const Status stage = m.stage->MoveTo(5.0);
+  EXPECT_EQ(stage.code(), StatusCode::kDeviceError);
+  EXPECT_NE(stage.message().find("did not arrive"), std::string::npos);
+}
+
 }  // namespace insitu::hw

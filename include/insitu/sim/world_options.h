@@ -190,6 +190,16 @@ struct BoardOptions {
   Status Validate() const;
 };
 
+// Device faults the simulated machine injects (for the daemon's fault handling): each fires
+// once its count is reached; -1 never. Counted per machine (per job).
+struct FaultOptions {
+  int camera_timeout_at_frame = -1;   // that frame grab times out (no frame arrives)
+  int scanner_error_at_command = -1;  // that scanner command (pointer line or list) fails
+  bool stage_stuck = false;           // every stage move fails to arrive
+
+  Status Validate() const;
+};
+
 struct WorldOptions {
   std::string name = "default";
   ScanHeadOptions scan_head;
@@ -198,6 +208,7 @@ struct WorldOptions {
   PartOptions part;
   StageOptions stage;
   BoardOptions board;
+  FaultOptions faults;
   uint64_t seed = 1;
 
   Status Validate() const;

@@ -15,6 +15,7 @@ class SimScanner : public Scanner {
   }
   Status StartPointerLine(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
                           double speed_mm_per_s) override {
+    INSITU_RETURN_IF_ERROR(InjectedFault());
     return world_->StartPointerLine(from, to, speed_mm_per_s);
   }
   Status StopPointer() override {
@@ -31,13 +32,14 @@ class SimScanner : public Scanner {
   }
   bool armed() const override { return armed_; }
   Status ExecuteList(const GalvoList& list) override {
+    INSITU_RETURN_IF_ERROR(InjectedFault());
     std::vector<sim::ListMove> moves;
     bool marks = false;
     for (const GalvoListEntry& e : list.entries) {
       const bool mark = e.kind == GalvoListEntry::Kind::kMark;
       marks |= mark;
-      moves.push_back({mark ? sim::ListMove::Kind::kMark : sim::ListMove::Kind::kJump,
-                       e.to_in_galvo});
+      moves.push_back(
+          {mark ? sim::ListMove::Kind::kMark : sim::ListMove::Kind::kJump, e.to_in_galvo});
     }
     if (marks && !armed_) {
       return FailedPrecondition("the list marks but the scan head is not armed");
@@ -55,8 +57,21 @@ class SimScanner : public Scanner {
   }
 
  private:
+  // The injected scanner error (world faults): the head stops, the laser is off.
+  Status InjectedFault() {
+    const int at = world_->options().faults.scanner_error_at_command;
+    if (at >= 0 && commands_++ == at) {
+      world_->StopPointer();
+      armed_ = false;
+      return Status(StatusCode::kDeviceError,
+                    "scan head error: servo fault on the X mirror (injected)");
+    }
+    return Status::Ok();
+  }
+
   std::shared_ptr<sim::SimWorld> world_;
   bool armed_ = false;
+  int commands_ = 0;
 };
 
 class SimCamera : public Camera {
@@ -69,10 +84,18 @@ class SimCamera : public Camera {
   Status SetExposure(double exposure_us) override { return world_->SetExposure(exposure_us); }
   Status SetGain(double gain_db) override { return world_->SetGain(gain_db); }
   Status SetBinning(int binning) override { return world_->SetBinning(binning); }
-  Result<Frame> Grab() override { return world_->Grab(); }
+  Result<Frame> Grab() override {
+    const int at = world_->options().faults.camera_timeout_at_frame;
+    if (at >= 0 && frames_++ == at) {
+      world_->Advance(1.0);  // the timeout's wait
+      return Status(StatusCode::kDeviceError, "camera timeout: no frame within 1000 ms (injected)");
+    }
+    return world_->Grab();
+  }
 
  private:
   std::shared_ptr<sim::SimWorld> world_;
+  int frames_ = 0;
 };
 
 // The scan head's coaxial camera: sees around wherever the head points.
@@ -114,7 +137,15 @@ class SimStage : public Stage {
   double min_z_mm() const override { return world_->options().stage.min_z_mm; }
   double max_z_mm() const override { return world_->options().stage.max_z_mm; }
   Result<double> Position() const override { return world_->stage_z(); }
-  Status MoveTo(double z_mm) override { return world_->MoveStage(z_mm); }
+  Status MoveTo(double z_mm) override {
+    if (world_->options().faults.stage_stuck) {
+      world_->Advance(10.0);
+      return Status(
+          StatusCode::kDeviceError,
+          "stage did not arrive at z = " + std::to_string(z_mm) + " mm within 10 s (injected)");
+    }
+    return world_->MoveStage(z_mm);
+  }
 
  private:
   std::shared_ptr<sim::SimWorld> world_;
