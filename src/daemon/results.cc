@@ -9,6 +9,8 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "insitu/core/file.h"
+
 namespace insitu::daemon {
 namespace {
 
@@ -23,25 +25,10 @@ std::string Now(const char* format) {
   return buf;
 }
 
-Status WriteAtomically(const fs::path& path, const std::string& text) {
-  const fs::path tmp = path.string() + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    f << text;
-    f.flush();
-    if (!f.good()) return Status(StatusCode::kDeviceError, "cannot write " + tmp.string());
-  }
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec)
-    return Status(StatusCode::kDeviceError, "cannot write " + path.string() + ": " + ec.message());
-  return Status::Ok();
-}
-
 Status WriteState(const JobRecord& r) {
   const nlohmann::json j = {{"id", r.id},         {"job", r.job},         {"status", r.status},
                             {"reason", r.reason}, {"started", r.started}, {"finished", r.finished}};
-  return WriteAtomically(fs::path(r.dir) / "state.json", j.dump(2) + "\n");
+  return WriteFileAtomically((fs::path(r.dir) / "state.json").string(), j.dump(2) + "\n");
 }
 
 JobRecord ReadState(const fs::path& folder) {

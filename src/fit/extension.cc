@@ -3,9 +3,10 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
+#include <sstream>
 
 #include "insitu/core/config.h"
+#include "insitu/core/file.h"
 
 namespace insitu::fit {
 
@@ -64,31 +65,24 @@ Eigen::Vector2d ModelExtension::Inverse(const Eigen::Vector2d& target, double z)
 
 Status SaveExtension(const ModelExtension& ext, const std::string& origin,
                      const std::string& path) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp);
-    f << "# A model extension from insitu diagnose: library effects with fitted parameters.\n"
-      << "version: 1\nproduced_by: insitu diagnose\ndata: \"" << origin << "\"\neffects:";
-    if (ext.empty()) f << " []";
-    f << "\n";
-    for (const EffectParams& e : ext.effects()) {
-      const auto names = MakeEffect(e.name)->param_names();
-      f << "  - name: " << e.name << "\n    params: [";
-      for (size_t k = 0; k < e.params.size(); ++k) {
-        char buf[40];
-        std::snprintf(buf, sizeof buf, "%.10g", e.params[k]);
-        f << (k ? ", " : "") << buf;
-      }
-      f << "]   #";
-      for (const auto& n : names) f << " " << n;
-      f << "\n";
+  std::ostringstream f;
+  f << "# A model extension from insitu diagnose: library effects with fitted parameters.\n"
+    << "version: 1\nproduced_by: insitu diagnose\ndata: \"" << origin << "\"\neffects:";
+  if (ext.empty()) f << " []";
+  f << "\n";
+  for (const EffectParams& e : ext.effects()) {
+    const auto names = MakeEffect(e.name)->param_names();
+    f << "  - name: " << e.name << "\n    params: [";
+    for (size_t k = 0; k < e.params.size(); ++k) {
+      char buf[40];
+      std::snprintf(buf, sizeof buf, "%.10g", e.params[k]);
+      f << (k ? ", " : "") << buf;
     }
-    if (!f.good()) return Status(StatusCode::kDeviceError, "cannot write " + tmp);
+    f << "]   #";
+    for (const auto& n : names) f << " " << n;
+    f << "\n";
   }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) return Status(StatusCode::kDeviceError, "cannot write " + path);
-  return Status::Ok();
+  return WriteFileAtomically(path, f.str());
 }
 
 Result<ModelExtension> LoadExtension(const std::string& path) {

@@ -9,6 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "insitu/core/file.h"
 #include "insitu/fit/extension.h"
 #include "insitu/fit/field_data.h"
 
@@ -78,17 +79,8 @@ Result<fit::Diagnosis> RunDiagnose(const std::string& csv_path, const std::strin
   std::filesystem::create_directories(out_dir, ec);
   if (ec) return NotFound("cannot create output folder " + out_dir);
   const std::filesystem::path dir(out_dir);
-  {
-    // Atomic: a reader never sees half a report.
-    const std::filesystem::path tmp = dir / "report.json.tmp";
-    std::ofstream f(tmp);
-    f << d.ToJson() << "\n";
-    f.close();
-    if (!f.good()) return Status(StatusCode::kDeviceError, "cannot write " + tmp.string());
-    std::filesystem::rename(tmp, dir / "report.json", ec);
-    if (ec)
-      return Status(StatusCode::kDeviceError, "cannot write " + (dir / "report.json").string());
-  }
+  // Atomic: a reader never sees half a report.
+  INSITU_RETURN_IF_ERROR(WriteFileAtomically((dir / "report.json").string(), d.ToJson() + "\n"));
   {
     // The extended model, for the simulator (world scan_head.field_effects) and the galvo list
     // (mark job head.model_extension).

@@ -14,6 +14,7 @@
 
 #include "insitu/pattern/correction_table.h"
 #include "insitu/sim/world.h"
+#include "support/landed_spot.h"
 
 namespace insitu {
 namespace {
@@ -27,19 +28,7 @@ sim::WorldOptions DistortedHead() {
   return w;
 }
 
-// Where the spot of one marking pulse lands for a command (the crater's
-// centre).
-Eigen::Vector2d Land(const sim::WorldOptions& o, const Eigen::Vector2d& cmd) {
-  sim::SimWorld w(o);
-  sim::MarkingParams p;
-  p.jump_delay_us = 3000;
-  p.laser_off_delay_us = 40;  // about one pulse at 30 kHz, at rest on the point
-  std::vector<sim::ListMove> moves{{sim::ListMove::Kind::kJump, {cmd.x(), cmd.y(), 0.0}},
-                                   {sim::ListMove::Kind::kMark, {cmd.x(), cmd.y(), 0.0}}};
-  EXPECT_TRUE(w.ExecuteMarkingList(moves, p).ok());
-  EXPECT_FALSE(w.mark_pulses().empty());
-  return w.mark_pulses().back().point_in_world.head<2>();
-}
+using testing::LandedSpot;
 
 TEST(FieldCorrection, TableBringsTheSpotsBackOnTarget) {
   const sim::WorldOptions o = DistortedHead();
@@ -52,7 +41,7 @@ TEST(FieldCorrection, TableBringsTheSpotsBackOnTarget) {
     for (int i = 0; i < 9; ++i) {
       const Eigen::Vector2d target(-60.0 + 15.0 * i, -60.0 + 15.0 * j);
       Eigen::Vector2d cmd = target;
-      for (int it = 0; it < 4; ++it) cmd += target - Land(o, cmd);
+      for (int it = 0; it < 4; ++it) cmd += target - LandedSpot(o, cmd);
       csv << target.x() << "," << target.y() << "," << cmd.x() - target.x() << ","
           << cmd.y() - target.y() << "\n";
     }
@@ -64,9 +53,9 @@ TEST(FieldCorrection, TableBringsTheSpotsBackOnTarget) {
   double worst_raw = 0.0, worst_corrected = 0.0;
   for (const Eigen::Vector2d& target : {Eigen::Vector2d(40.0, 35.0), Eigen::Vector2d(-52.5, 10.0),
                                         Eigen::Vector2d(7.5, -44.0), Eigen::Vector2d(0.0, 0.0)}) {
-    worst_raw = std::max(worst_raw, (Land(o, target) - target).norm());
+    worst_raw = std::max(worst_raw, (LandedSpot(o, target) - target).norm());
     const Eigen::Vector3d cmd = correct({target.x(), target.y(), 0.0});
-    worst_corrected = std::max(worst_corrected, (Land(o, cmd.head<2>()) - target).norm());
+    worst_corrected = std::max(worst_corrected, (LandedSpot(o, cmd.head<2>()) - target).norm());
   }
   // Uncorrected the head is off by ~0.4 mm at 50 mm from the centre (1 % scale,
   // mirror spacing, the zero error's 0.05 mm). Corrected, what is left is the

@@ -15,6 +15,7 @@
 #include "insitu/fit/diagnose.h"
 #include "insitu/fit/extension.h"
 #include "insitu/sim/world.h"
+#include "support/landed_spot.h"
 
 namespace insitu {
 namespace {
@@ -26,18 +27,7 @@ sim::WorldOptions HeadWithPincushion() {
   return w;
 }
 
-// Where one marking pulse lands for a command (the crater's centre).
-Eigen::Vector2d Land(const sim::WorldOptions& o, const Eigen::Vector2d& cmd) {
-  sim::SimWorld w(o);
-  sim::MarkingParams p;
-  p.jump_delay_us = 3000;
-  p.laser_off_delay_us = 40;
-  const std::vector<sim::ListMove> moves{{sim::ListMove::Kind::kJump, {cmd.x(), cmd.y(), 0.0}},
-                                         {sim::ListMove::Kind::kMark, {cmd.x(), cmd.y(), 0.0}}};
-  EXPECT_TRUE(w.ExecuteMarkingList(moves, p).ok());
-  EXPECT_FALSE(w.mark_pulses().empty());
-  return w.mark_pulses().back().point_in_world.head<2>();
-}
+using testing::LandedSpot;
 
 TEST(ModelExtension, DiagnosedEffectCorrectsTheMarks) {
   const sim::WorldOptions o = HeadWithPincushion();
@@ -50,7 +40,7 @@ TEST(ModelExtension, DiagnosedEffectCorrectsTheMarks) {
     for (int i = 0; i < 9; ++i) {
       fit::FieldPoint p;
       p.cmd = {-40.0 + 10.0 * i, -40.0 + 10.0 * j};
-      p.meas = Land(o, p.cmd) + Eigen::Vector2d(noise(rng), noise(rng));
+      p.meas = LandedSpot(o, p.cmd) + Eigen::Vector2d(noise(rng), noise(rng));
       data.points.push_back(p);
     }
   }
@@ -73,8 +63,8 @@ TEST(ModelExtension, DiagnosedEffectCorrectsTheMarks) {
   for (const Eigen::Vector2d& target :
        {Eigen::Vector2d(35.0, 32.0), Eigen::Vector2d(-37.5, 18.0), Eigen::Vector2d(12.0, -36.0),
         Eigen::Vector2d(-25.0, -25.0)}) {
-    raw = std::max(raw, (Land(o, target) - target).norm());
-    corrected = std::max(corrected, (Land(o, loaded->Inverse(target)) - target).norm());
+    raw = std::max(raw, (LandedSpot(o, target) - target).norm());
+    corrected = std::max(corrected, (LandedSpot(o, loaded->Inverse(target)) - target).norm());
   }
   // Uncorrected, kappa (x - 5)(y + 8)^2 is 0.02 to 0.14 mm at these points. Corrected, what is
   // left is the fit's error: 2 um noise over 81 points pins kappa to ~1 % and the centre to
