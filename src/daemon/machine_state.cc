@@ -43,6 +43,19 @@ Status StateMachine::Arm() {
       "");
 }
 
+Status StateMachine::StartNext() {
+  return Move(
+      [](MachineState s) -> Result<MachineState> {
+        if (s != MachineState::kDone) {
+          return FailedPrecondition(std::string("a queued job starts only after a job ended done; "
+                                                "the machine is ") +
+                                    StateName(s));
+        }
+        return MachineState::kRunning;
+      },
+      "");
+}
+
 Status StateMachine::Disarm() {
   return Move(
       [](MachineState s) -> Result<MachineState> {

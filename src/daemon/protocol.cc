@@ -83,7 +83,7 @@ const std::vector<CommandSpec>& CommandTable() {
        false,
        false},
       {"ping", "is the daemon alive", {}, false, false},
-      {"status", "machine state, the running job and its progress", {}, true, false},
+      {"status", "machine state, the running job, its progress and the queue", {}, true, false},
       {"arm", "arm the machine: the next job may fire the marking laser", {}, true, false},
       {"disarm", "disarm the machine (refused while a job runs: cancel it)", {}, true, false},
       {"run",
@@ -92,13 +92,14 @@ const std::vector<CommandSpec>& CommandTable() {
        true,
        false},
       {"cancel",
-       "cancel the running job (laser off, list aborted, what was measured kept)",
-       {},
+       "cancel the running job (laser off, list aborted, what was measured kept), or a queued "
+       "one by its job_id",
+       {{"job_id", ArgType::kString, false}},
        true,
        false},
       {"result", "a job's report", {{"job_id", ArgType::kString, true}}, true, false},
       {"list_results", "every job the results folder holds, newest first", {}, true, false},
-      {"subscribe", "receive state and progress events on this connection", {}, true, false},
+      {"subscribe", "receive state, job and progress events on this connection", {}, true, false},
       {"shutdown", "stop the daemon safely (admin)", {}, true, true},
   };
   return kTable;

@@ -71,10 +71,11 @@ Result<ResultsStore> ResultsStore::Open(const std::string& dir) {
   if (ec || !fs::is_directory(dir)) return NotFound("cannot make the results folder " + dir);
   ResultsStore store(fs::absolute(dir).string());
   for (JobRecord& r : store.List()) {
-    if (r.status != "running") continue;
-    // Nobody runs it now: the daemon that did died with it.
+    if (r.status != "running" && r.status != "queued") continue;
+    // Nobody runs it now: the daemon that did (or would have) died with it.
+    r.reason = r.status == "running" ? "the daemon stopped while the job was running"
+                                     : "the daemon stopped while the job was queued; it never ran";
     r.status = "interrupted";
-    r.reason = "the daemon stopped while the job was running";
     r.finished = Now("%Y-%m-%dT%H:%M:%SZ");
     INSITU_RETURN_IF_ERROR(WriteState(r));
     ++store.interrupted_;
@@ -82,11 +83,11 @@ Result<ResultsStore> ResultsStore::Open(const std::string& dir) {
   return store;
 }
 
-Result<JobRecord> ResultsStore::Begin(const std::string& job_kind) {
+Result<JobRecord> ResultsStore::Begin(const std::string& job_kind, bool queued) {
   std::lock_guard<std::mutex> lock(*mutex_);
   JobRecord r;
   r.job = job_kind;
-  r.status = "running";
+  r.status = queued ? "queued" : "running";
   r.started = Now("%Y-%m-%dT%H:%M:%SZ");
   // Unique even within a second and across restarts: the first free counter.
   const std::string stamp = Now("%Y%m%dT%H%M%SZ");
@@ -106,6 +107,14 @@ Result<JobRecord> ResultsStore::Begin(const std::string& job_kind) {
   }
   INSITU_RETURN_IF_ERROR(WriteState(r));
   return r;
+}
+
+Status ResultsStore::Started(const std::string& id) {
+  std::lock_guard<std::mutex> lock(*mutex_);
+  INSITU_ASSIGN_OR_RETURN(JobRecord r, Get(id));
+  r.status = "running";
+  r.started = Now("%Y-%m-%dT%H:%M:%SZ");
+  return WriteState(r);
 }
 
 Status ResultsStore::Finish(const std::string& id, const std::string& status,

@@ -13,6 +13,7 @@
 #include <sstream>
 #include <thread>
 
+#include "daemon/job_queue.h"
 #include "insitu/core/log.h"
 #include "insitu/daemon/results.h"
 #include "insitu/job/job_file.h"
@@ -39,6 +40,10 @@ Status ServerOptions::Validate() const {
   if (max_line_bytes < 64) return InvalidArgument("max_line_bytes must be >= 64");
   if (max_clients < 1) return InvalidArgument("max_clients must be >= 1");
   if (!(idle_timeout_s > 0)) return InvalidArgument("idle_timeout_s must be > 0");
+  if (max_queued < 1 || max_queued > 1000) return InvalidArgument("max_queued must be in 1..1000");
+  if (!admin_token.empty() && admin_token == token) {
+    return InvalidArgument("admin_token must differ from token");
+  }
   asio::error_code ec;
   asio::ip::make_address(bind_address, ec);
   if (ec) return InvalidArgument("bind_address '" + bind_address + "' is not an IP address");
@@ -59,25 +64,12 @@ struct Server::Impl {
   StateMachine state;
   int bound_port = 0;
   std::unique_ptr<ResultsStore> store;
-  // The one job at a time (worker thread), its id and its cancel flag.
-  std::mutex job_mutex;
-  std::thread worker;
-  bool job_active = false;
-  std::string job_id;
-  std::atomic<bool> cancel{false};
+  std::unique_ptr<JobQueue> jobs;  // after store: it records into it
 
   std::string Run(const Request& r);
   std::string Cancel(const Request& r);
   std::string ResultOf(const Request& r);
   std::string ListResults(const Request& r);
-  void JoinWorker() {
-    std::thread w;
-    {
-      std::lock_guard<std::mutex> lock(job_mutex);
-      w = std::move(worker);
-    }
-    if (w.joinable()) w.join();
-  }
   std::mutex shutdown_mutex;
   std::condition_variable shutdown_cv;
   bool shutdown = false;
@@ -196,39 +188,55 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
       return;
     }
     const Request& r = p.request;
-    const std::string& token = server_->options.token;
-    if (!token.empty() && !authed_) {
-      if (r.cmd != "auth") {
-        server_->log->warn("refused {}: '{}' before auth", peer_, r.cmd.substr(0, 32));
-        SendAndClose(
-            ReplyError(r.id, "unauthorized", "authenticate first: {\"cmd\": \"auth\", ...}"));
-        return;
-      }
-      const bool ok = r.body.contains("token") && r.body["token"].is_string() &&
-                      EqualConstantTime(r.body["token"].get<std::string>(), token);
-      if (!ok) {
+    const ServerOptions& o = server_->options;
+    if (!o.token.empty() && !authed_ && r.cmd != "auth") {
+      server_->log->warn("refused {}: '{}' before auth", peer_, r.cmd.substr(0, 32));
+      SendAndClose(
+          ReplyError(r.id, "unauthorized", "authenticate first: {\"cmd\": \"auth\", ...}"));
+      return;
+    }
+    if (r.cmd == "auth" && (!o.token.empty() || !o.admin_token.empty())) {
+      const std::string given = r.body.contains("token") && r.body["token"].is_string()
+                                    ? r.body["token"].get<std::string>()
+                                    : std::string();
+      // Both compared, whichever matches: the time taken tells nothing.
+      const bool admin = !o.admin_token.empty() && EqualConstantTime(given, o.admin_token);
+      const bool operator_ = !o.token.empty() && EqualConstantTime(given, o.token);
+      if (!admin && !operator_) {
         server_->log->warn("refused {}: wrong token", peer_);  // never the token itself
         SendAndClose(ReplyError(r.id, "unauthorized", "wrong token"));
         return;
       }
       authed_ = true;
-      Send(ReplyOk(r.id));
+      admin_ = admin;
+      server_->log->info("{} authenticated as {}", peer_, admin ? "admin" : "operator");
+      Send(ReplyOk(r.id, {{"role", admin ? "admin" : "operator"}}));
       return;
     }
     if (const auto error = CheckRequest(r)) {
       Send(ReplyError(error->id, error->code, error->message));
       return;
     }
+    const CommandSpec* spec = FindCommand(r.cmd);
+    const bool open_daemon = o.token.empty() && o.admin_token.empty();
+    if (spec->admin && !admin_ && !open_daemon) {
+      server_->log->warn("refused {}: '{}' needs an admin client", peer_, r.cmd);
+      Send(ReplyError(r.id, "forbidden",
+                      r.cmd + " needs an admin client: authenticate with the admin token"));
+      return;
+    }
     StateMachine& state = server_->state;
     if (r.cmd == "auth") {
       authed_ = true;  // no token configured: nothing to check
-      Send(ReplyOk(r.id));
+      Send(ReplyOk(r.id, {{"role", "admin"}}));
     } else if (r.cmd == "ping") {
       Send(ReplyOk(r.id, {{"pong", true}}));
     } else if (r.cmd == "status") {
-      Send(ReplyOk(r.id, {{"state", StateName(state.state())},
-                          {"reason", state.last_reason()},
-                          {"clients", server_->clients.load()}}));
+      nlohmann::json fields = server_->jobs->Snapshot();
+      fields["state"] = StateName(state.state());
+      fields["reason"] = state.last_reason();
+      fields["clients"] = server_->clients.load();
+      Send(ReplyOk(r.id, std::move(fields)));
     } else if (r.cmd == "arm" || r.cmd == "disarm") {
       const Status st = r.cmd == "arm" ? state.Arm() : state.Disarm();
       Send(st.ok() ? ReplyOk(r.id, {{"state", StateName(state.state())}}) : ReplyError(r.id, st));
@@ -258,7 +266,7 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
   asio::steady_timer timer_;
   std::deque<std::string> out_;
   std::string peer_;
-  bool authed_ = false, subscribed_ = false, closing_ = false, closed_ = false;
+  bool authed_ = false, admin_ = false, subscribed_ = false, closing_ = false, closed_ = false;
 };
 
 void Server::Impl::Accept() {
@@ -318,61 +326,21 @@ std::string Server::Impl::Run(const Request& r) {
         r.id, "bad_argument",
         loaded->path + ": unknown job kind '" + loaded->kind + "' (known: " + known + ")");
   }
-  std::thread previous;
-  {
-    std::lock_guard<std::mutex> lock(job_mutex);
-    if (job_active) {
-      return ReplyError(r.id, "wrong_state", "job " + job_id + " is running: one job at a time");
-    }
-    const Status started = state.Start();
-    if (!started.ok()) return ReplyError(r.id, started);
-    auto record = store->Begin(loaded->kind);
-    if (!record.ok()) {
-      (void)state.Finish(JobOutcome::kFaulted, record.status().message());
-      return ReplyError(r.id, record.status());
-    }
-    previous = std::move(worker);  // a finished job's thread
-    job_active = true;
-    job_id = record->id;
-    cancel = false;
-    worker = std::thread([this, job = *loaded, rec = *record] {
-      job::RunOptions run;
-      run.out_dir = rec.dir;
-      run.cancel = &cancel;
-      const auto report = job::RunJob(job, run);
-      const bool cancelled =
-          cancel.load() || (!report.ok() && report.status().code() == StatusCode::kCancelled);
-      const std::string status = report.ok() && report->ok ? "done"
-                                 : cancelled               ? "cancelled"
-                                                           : "faulted";
-      const std::string reason = report.ok() ? report->error : report.status().message();
-      (void)store->Finish(rec.id, status, status == "done" ? "" : reason);
-      (void)state.Finish(status == "done"        ? JobOutcome::kDone
-                         : status == "cancelled" ? JobOutcome::kCancelled
-                                                 : JobOutcome::kFaulted,
-                         reason);
-      const std::string event =
-          EventLine("job", {{"job_id", rec.id}, {"status", status}, {"reason", reason}});
-      {
-        std::lock_guard<std::mutex> lock(job_mutex);
-        job_active = false;
-      }
-      asio::post(io, [this, event] { Broadcast(event); });
-    });
+  auto submitted = jobs->Submit(std::move(*loaded));
+  if (!submitted.ok()) return ReplyError(r.id, submitted.status());
+  nlohmann::json fields = {{"job_id", submitted->id}, {"job", submitted->kind}};
+  if (submitted->position > 0) {
+    fields["queued"] = true;
+    fields["position"] = submitted->position;
   }
-  if (previous.joinable()) previous.join();
-  // After the reply (posted: it runs once this request's handler has sent it).
-  const std::string event =
-      EventLine("job", {{"job_id", job_id}, {"status", "running"}, {"job", loaded->kind}});
-  asio::post(io, [this, event] { Broadcast(event); });
-  return ReplyOk(r.id, {{"job_id", job_id}, {"job", loaded->kind}});
+  return ReplyOk(r.id, std::move(fields));
 }
 
 std::string Server::Impl::Cancel(const Request& r) {
-  std::lock_guard<std::mutex> lock(job_mutex);
-  if (!job_active) return ReplyError(r.id, "wrong_state", "no job is running");
-  cancel = true;
-  return ReplyOk(r.id, {{"job_id", job_id}});
+  const std::string id = r.body.contains("job_id") ? r.body["job_id"].get<std::string>() : "";
+  auto cancelled = jobs->Cancel(id);
+  if (!cancelled.ok()) return ReplyError(r.id, cancelled.status());
+  return ReplyOk(r.id, {{"job_id", *cancelled}});
 }
 
 std::string Server::Impl::ResultOf(const Request& r) {
@@ -417,6 +385,14 @@ Status Server::Start() {
     }
     impl_->store = std::make_unique<ResultsStore>(std::move(*store));
   }
+  QueueOptions queue{impl_->options.queue, impl_->options.max_queued};
+  impl_->jobs = std::make_unique<JobQueue>(
+      &impl_->state, impl_->store.get(), queue,
+      [impl = impl_.get()](const std::string& event, nlohmann::json fields) {
+        // Posted: a request's reply is sent before the events it causes.
+        const std::string line = EventLine(event, std::move(fields));
+        asio::post(impl->io, [impl, line] { impl->Broadcast(line); });
+      });
   asio::error_code ec;
   const asio::ip::tcp::endpoint ep(asio::ip::make_address(impl_->options.bind_address),
                                    static_cast<unsigned short>(impl_->options.port));
@@ -453,8 +429,7 @@ int Server::port() const { return impl_->bound_port; }
 void Server::Stop() {
   if (!impl_->running) return;
   impl_->running = false;
-  impl_->cancel = true;  // a running job stops at its next check; its state is saved
-  impl_->JoinWorker();
+  if (impl_->jobs) impl_->jobs->Stop();  // a running job stops at its next check, state saved
   asio::post(impl_->io, [impl = impl_.get()] {
     asio::error_code ec;
     impl->acceptor.close(ec);

@@ -16,9 +16,14 @@
 #include "insitu/core/log.h"
 #include "insitu/vision/stripe.h"
 #include "insitu/vision/targets.h"
+#include "job/progress.h"
 
 namespace insitu::job {
 namespace {
+
+bool Cancelled(const RunOptions& options) {
+  return options.cancel != nullptr && options.cancel->load();
+}
 
 struct CalibrateSpec {
   MachineSpec machine;
@@ -176,14 +181,17 @@ Result<Report> RunCalibrateJob(const LoadedJob& job, const RunOptions& options) 
   }
 
   // 1. Intrinsics: the operator holds the board in `views` poses.
-  INSITU_RETURN_IF_ERROR(machine.camera->SetBinning(1));
-  INSITU_RETURN_IF_ERROR(machine.camera->SetExposure(spec.board_exposure_ms * 1e3));
-  INSITU_RETURN_IF_ERROR(machine.stage->MoveTo(spec.board_stage_z_mm));
+  for (const Status& s : {machine.camera->SetBinning(1),
+                          machine.camera->SetExposure(spec.board_exposure_ms * 1e3),
+                          machine.stage->MoveTo(spec.board_stage_z_mm)}) {
+    if (!s.ok()) return finish(false, "intrinsics: " + s.ToString());
+  }
   (void)machine.scanner->StopPointer();
   std::vector<std::vector<Eigen::Vector2d>> corners;
-  Progress progress("job", "board views", spec.views);
+  PhaseProgress progress(options, "intrinsics", "board views", spec.views);
   const vision::ChessboardOptions board{spec.board.inner_cols, spec.board.inner_rows};
   for (int k = 0; k < spec.views; ++k) {
+    if (Cancelled(options)) return finish(false, "cancelled");
   const Status placed = machine.person->PlaceBoard(k, spec.views);
     if (!placed.ok()) return finish(false, placed.ToString());
     auto frame = machine.camera->Grab();
@@ -223,8 +231,14 @@ Result<Report> RunCalibrateJob(const LoadedJob& job, const RunOptions& options) 
   // positions (a part would put them at unknown heights).
   const Status cleared = machine.person->ClearTable();
   if (!cleared.ok()) return finish(false, cleared.ToString());
-  INSITU_RETURN_IF_ERROR(machine.camera->SetExposure(spec.spot_exposure_ms * 1e3));
+  const Status exposed = machine.camera->SetExposure(spec.spot_exposure_ms * 1e3);
+  if (!exposed.ok()) return finish(false, "alignment: " + exposed.ToString());
   std::vector<calib::GalvoSpot> spots;
+  const int per_level =
+      static_cast<int>(std::pow(std::floor(2.0 * spec.spot_half_size_mm / spec.spot_step_mm + 1e-9) + 1, 2));
+  PhaseProgress spotting(options, "alignment", "spots",
+                         static_cast<double>(per_level * spec.spot_stage_z_mm.size()));
+  int spot_frames = 0;
   std::vector<Eigen::Vector2d> first_level;
   Frame last;
   for (double z : spec.spot_stage_z_mm) {
@@ -235,6 +249,8 @@ Result<Report> RunCalibrateJob(const LoadedJob& job, const RunOptions& options) 
     if (!dark.ok()) return finish(false, dark.status().ToString());
     for (double x = -spec.spot_half_size_mm; x <= spec.spot_half_size_mm + 1e-9; x += spec.spot_step_mm) {
       for (double y = -spec.spot_half_size_mm; y <= spec.spot_half_size_mm + 1e-9; y += spec.spot_step_mm) {
+        if (Cancelled(options)) return finish(false, "cancelled");
+        spotting.Update(spot_frames++);
         const Eigen::Vector3d p(x, y, z);
         const Status on = machine.scanner->StartPointerLine(p, p, 1.0);
         if (!on.ok()) return finish(false, "alignment: " + on.ToString());
@@ -254,6 +270,7 @@ Result<Report> RunCalibrateJob(const LoadedJob& job, const RunOptions& options) 
     }
     (void)machine.scanner->StopPointer();
   }
+  spotting.Update(static_cast<double>(per_level * spec.spot_stage_z_mm.size()));
   (void)machine.stage->MoveTo(0.0);
   if (!last.bytes.empty() && SaveOverlay(last, first_level, 0x2ca02c, (dir / "spots.png").string()).ok()) {
     report.artifacts["spots"] = "spots.png";
@@ -278,12 +295,13 @@ Result<Report> RunCalibrateJob(const LoadedJob& job, const RunOptions& options) 
     stripe_options.direction = vision::StripeDirection::kColumns;
     vision::StripeExtractor extractor(stripe_options);
     vision::StripeResult stripe;
-    Progress hp("job", "height calibration frames", static_cast<int>(zs.size() * xs.size()));
+    PhaseProgress hp(options, "height calibration", "frames", static_cast<double>(zs.size() * xs.size()));
     int done = 0;
     for (double z : zs) {
       const Status moved = machine.stage->MoveTo(z);
       if (!moved.ok()) return finish(false, "height calibration: " + moved.ToString());
       for (double x : xs) {
+        if (Cancelled(options)) return finish(false, "cancelled");
         const Status on = machine.scanner->StartPointerLine({x, spec.y_start_mm, 0.0},
                                                             {x, spec.y_end_mm, 0.0},
                                                             spec.speed_mm_per_s);

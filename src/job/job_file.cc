@@ -102,6 +102,7 @@ void ReadBeam(ConfigReader& r, sim::BeamOptions* b) {
 
 void ReadWorld(ConfigReader& r, sim::WorldOptions* w) {
   r.Read("name", &w->name);
+  r.Read("real_time_factor", &w->real_time_factor);
   int seed = static_cast<int>(w->seed);
   r.Read("seed", &seed);
   if (seed < 0) r.Fail("seed", "must be >= 0");
@@ -235,6 +236,8 @@ void ReadWorld(ConfigReader& r, sim::WorldOptions* w) {
 
   ConfigReader& fa = r.Section("faults");
   fa.Read("camera_timeout_at_frame", &w->faults.camera_timeout_at_frame);
+  fa.Read("camera_drop_frame_at", &w->faults.camera_drop_frame_at);
+  fa.Read("camera_corrupt_frame_at", &w->faults.camera_corrupt_frame_at);
   fa.Read("scanner_error_at_command", &w->faults.scanner_error_at_command);
   fa.Read("stage_stuck", &w->faults.stage_stuck);
   if (fa.ok()) fa.FailFromValidate(w->faults.Validate());

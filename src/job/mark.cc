@@ -18,6 +18,7 @@
 #include "insitu/pattern/raster.h"
 #include "insitu/pattern/vector.h"
 #include "job/mark_verify.h"
+#include "job/progress.h"
 #include "job/scan_job.h"
 
 namespace insitu::job {
@@ -402,7 +403,7 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
 
   // 1. Measure the part where it lies.
   log->info("mark: scanning {} lines", spec.scan.line_count());
-  Progress progress("job", "scan lines", spec.scan.line_count());
+  PhaseProgress progress(options, "scan", "lines", spec.scan.line_count());
   auto scanned = RunScan(
       up.machine, spec.scan, spec.extraction, up.calibration,
       [&](int done, int) { progress.Update(done); }, options.cancel);
@@ -498,13 +499,21 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
     ArmGuard guard{up.machine.scanner.get()};
     log->info("mark: {} marks, {:.1f} mm, ~{:.1f} s", plan.marks, plan.marked_length_mm,
               report.metrics["list_duration_s"]);
-    const Status ran = up.machine.scanner->ExecuteList(ToHeadList(*list, correction));
+    // Cancel reaches the head while the list runs: it aborts within one of its clock ticks.
+    const double list_s = report.metrics["list_duration_s"];
+    PhaseProgress marking(options, "mark", "s", list_s);
+    hw::ListControl control;
+    control.abort = options.cancel;
+    control.progress = [&](double fraction) { marking.Update(fraction * list_s); };
+    const Status ran = up.machine.scanner->ExecuteList(ToHeadList(*list, correction), control);
     if (!ran.ok()) return finish(false, "marking: " + ran.ToString());
   }
   log->info("mark: done");
 
   // 5. Look at what was marked.
   if (mark.verify.enabled) {
+    if (options.cancel != nullptr && options.cancel->load()) return finish(false, "cancelled");
+    PhaseProgress verifying(options, "verify", "steps", 1);
     auto after = GrabSideView(up.machine, mark.verify, &side_exposure_us);
     if (!after.ok())
       return finish(false, "side camera after marking: " + after.status().ToString());
@@ -525,6 +534,7 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
     const Status verified = VerifyMarks(up.machine, up.calibration, *surface, design, mark.verify,
                                         before, *after, options.out_dir, &report);
     if (!verified.ok()) return finish(false, "verification: " + verified.ToString());
+    verifying.Update(1);
   }
   return finish(true, "");
 }

@@ -15,6 +15,7 @@
 #include "insitu/job/step_gauge.h"
 #include "job/calibrate.h"
 #include "job/mark.h"
+#include "job/progress.h"
 #include "job/scan_job.h"
 
 namespace insitu::job {
@@ -145,7 +146,7 @@ Result<Report> RunScanJob(const LoadedJob& job, const RunOptions& options) {
             spec.scan.line_count(), spec.scan.x_start_mm, spec.scan.x_end_mm,
             spec.scan.line_spacing_mm, spec.scan.speed_mm_per_s, spec.scan.exposure_ms,
             calibration.produced_by);
-  Progress progress("job", "scan lines", spec.scan.line_count());
+  PhaseProgress progress(options, "scan", "lines", spec.scan.line_count());
   auto scanned = RunScan(
       machine, spec.scan, spec.extraction, calibration,
       [&](int done, int) { progress.Update(done); }, options.cancel);

@@ -146,6 +146,7 @@ Result<Frame> SimWorld::GrabCoaxial(double exposure_us) {
     }
   });
   now_s_ += exposure_us * 1e-6;
+  PaceTo(now_s_);
   return frame;
 }
 

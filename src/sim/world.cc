@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <thread>
 
 #include <Eigen/Dense>
 
@@ -83,7 +85,25 @@ int SimWorld::board_pose_count() const {
 SimWorld::~SimWorld() = default;
 
 double SimWorld::now_s() const { return now_s_; }
-void SimWorld::Advance(double seconds) { now_s_ += std::max(0.0, seconds); }
+void SimWorld::Advance(double seconds) {
+  now_s_ += std::max(0.0, seconds);
+  PaceTo(now_s_);
+}
+
+void SimWorld::PaceTo(double t) {
+  const double factor = options_.real_time_factor;
+  if (!(factor > 0)) return;
+  const auto wall = std::chrono::steady_clock::now();
+  const auto due = pace_wall0_ + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                     std::chrono::duration<double>((t - pace_virtual0_) / factor));
+  if (!paced_ || wall > due + std::chrono::milliseconds(50)) {
+    paced_ = true;  // first call, or the simulation fell behind: start again from here
+    pace_wall0_ = wall;
+    pace_virtual0_ = t;
+    return;
+  }
+  if (due > wall) std::this_thread::sleep_until(due);
+}
 
 const CameraModel& SimWorld::true_camera() const { return *camera_full_; }
 const Scene& SimWorld::scene() const { return *scene_; }
@@ -170,7 +190,9 @@ void SimWorld::PointerSamples(double t0, double t1, std::vector<BeamSample>* sam
   }
 }
 
-Status SimWorld::ExecuteMarkingList(const std::vector<ListMove>& moves, const MarkingParams& p) {
+Status SimWorld::ExecuteMarkingList(const std::vector<ListMove>& moves, const MarkingParams& p,
+                                    const std::atomic<bool>* abort,
+                                    const std::function<void(double)>& progress) {
   if (!(p.jump_speed_mm_per_s > 0) || !(p.mark_speed_mm_per_s > 0)) {
     return InvalidArgument("list speeds must be > 0");
   }
@@ -254,7 +276,24 @@ Status SimWorld::ExecuteMarkingList(const std::vector<ListMove>& moves, const Ma
   MirrorAngles actual = rest_angles_;
   double t = 0.0, next_pulse = 0.0;
   bool was_on = false;
-  for (const Tick& k : timeline) {
+  const double list_s = static_cast<double>(timeline.size()) * tick;
+  const int pace_every = std::max(1, static_cast<int>(std::lround(1e-3 / tick)));       // 1 ms
+  const int report_every = std::max(1, static_cast<int>(std::lround(0.1 / tick)));      // 100 ms
+  for (size_t i = 0; i < timeline.size(); ++i) {
+    const Tick& k = timeline[i];
+    if (abort != nullptr && abort->load(std::memory_order_relaxed)) {
+      // The laser goes off on this tick; the mirrors hold where the command was.
+      last_abort_ = {true, now_s_, now_s_ + list_s, now_s_ + t, std::chrono::steady_clock::now()};
+      now_s_ += t;
+      last_command_ = k.command;
+      rest_angles_ = actual;
+      char done[96];
+      std::snprintf(done, sizeof done, "list aborted after %.1f of %.1f ms; laser off", t * 1e3,
+                    list_s * 1e3);
+      return Status(StatusCode::kCancelled, done);
+    }
+    if (i % pace_every == 0) PaceTo(now_s_ + t);
+    if (progress && i > 0 && i % report_every == 0) progress(t / list_s);
     MirrorAngles cmd;
     CommandToAngles(k.command, &cmd);
     actual.x_rad += alpha * (cmd.x_rad - actual.x_rad);
@@ -273,6 +312,7 @@ Status SimWorld::ExecuteMarkingList(const std::vector<ListMove>& moves, const Ma
       Hit hit;
       if (!scene_->Intersect(start, -ray.up, 5000.0, &hit)) continue;
       MarkPulse pulse;
+      pulse.t_s = now_s_ + next_pulse;
       pulse.point_in_world = hit.point_in_world;
       pulse.on_part = hit.on_part;
       pulse.defocus_mm = (k.command.z() - hit.point_in_world.z()) / ray.up.z();
@@ -292,6 +332,8 @@ Status SimWorld::ExecuteMarkingList(const std::vector<ListMove>& moves, const Ma
   now_s_ += t;
   last_command_ = at;
   rest_angles_ = actual;
+  PaceTo(now_s_);
+  if (progress) progress(1.0);
   return Status::Ok();
 }
 
@@ -329,6 +371,7 @@ Status SimWorld::MoveStage(double z_mm) {
                       std::to_string(st.min_z_mm) + ", " + std::to_string(st.max_z_mm) + "] mm");
   }
   now_s_ += std::abs(z_mm - scene_->stage_z()) / st.speed_mm_per_s;
+  PaceTo(now_s_);
   scene_->set_stage_z(z_mm);
   return Status::Ok();
 }
@@ -553,6 +596,7 @@ Result<Frame> SimWorld::Grab() {
   }
   });
   now_s_ = t1;
+  PaceTo(now_s_);
   return frame;
 }
 

@@ -183,11 +183,18 @@ Status WorldOptions::Validate() const {
   INSITU_RETURN_IF_ERROR(stage.Validate().Prefixed("stage"));
   INSITU_RETURN_IF_ERROR(board.Validate().Prefixed("board"));
   INSITU_RETURN_IF_ERROR(faults.Validate().Prefixed("faults"));
+  if (!(real_time_factor >= 0 && real_time_factor <= 1000)) {
+    return Bad("real_time_factor", "in [0, 1000]", real_time_factor);
+  }
   return Status::Ok();
 }
 
 Status FaultOptions::Validate() const {
   if (camera_timeout_at_frame < -1) return Bad("camera_timeout_at_frame", ">= -1", camera_timeout_at_frame);
+  if (camera_drop_frame_at < -1) return Bad("camera_drop_frame_at", ">= -1", camera_drop_frame_at);
+  if (camera_corrupt_frame_at < -1) {
+    return Bad("camera_corrupt_frame_at", ">= -1", camera_corrupt_frame_at);
+  }
   if (scanner_error_at_command < -1) {
     return Bad("scanner_error_at_command", ">= -1", scanner_error_at_command);
   }

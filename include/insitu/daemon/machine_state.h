@@ -3,6 +3,7 @@
 //
 //   Idle --arm--> Armed --start--> Running --finish--> Done | Faulted | Cancelled
 //   Armed --disarm--> Idle;  Done | Faulted | Cancelled --arm--> Armed, --disarm--> Idle
+//   Done --start next--> Running (a queued job after one that ended done, armed for the queue)
 //
 // Every change is reported to the listeners (the daemon turns them into events for subscribed
 // clients). Thread-safe: the job thread finishes, socket threads arm and disarm.
@@ -40,6 +41,9 @@ class StateMachine {
   Status Arm();
   Status Disarm();
   Status Start();
+  // The next queued job, straight from Done. Errors: failed_precondition in any other state
+  // (the last job did not end done, or the operator disarmed meanwhile).
+  Status StartNext();
   Status Finish(JobOutcome outcome, const std::string& reason = "");
 
   void AddListener(Listener listener);

@@ -1,8 +1,9 @@
 // The daemon's results folder: one sub-folder per job (its report.json and artifacts, written
 // by the job) plus the daemon's own state.json saying what became of the job. Every file the
 // store writes is written atomically (a temporary file, then rename), so a reader never sees
-// half of one. A job the daemon was running when it died (crash, kill, power) still says
-// "running" on disk; opening the store marks every such job "interrupted": never "done".
+// half of one. A job the daemon was running (or had queued) when it died (crash, kill, power)
+// still says "running" ("queued") on disk; opening the store marks every such job
+// "interrupted": never "done".
 #pragma once
 
 #include <memory>
@@ -17,7 +18,7 @@ namespace insitu::daemon {
 struct JobRecord {
   std::string id;       // folder name: sortable, newest last ("20261123T164500Z-0003")
   std::string job;      // job kind
-  std::string status;   // running, done, faulted, cancelled, interrupted, unreadable
+  std::string status;   // queued, running, done, faulted, cancelled, interrupted, unreadable
   std::string reason;   // the fault or cancel message; why unreadable
   std::string started;  // ISO 8601
   std::string finished;
@@ -33,8 +34,10 @@ class ResultsStore {
   ResultsStore(ResultsStore&&) noexcept;
   ResultsStore& operator=(ResultsStore&&) noexcept;
 
-  // A new job folder with state "running". Errors: device_error naming the file.
-  Result<JobRecord> Begin(const std::string& job_kind);
+  // A new job folder with state "running" (or "queued"). Errors: device_error naming the file.
+  Result<JobRecord> Begin(const std::string& job_kind, bool queued = false);
+  // A queued job starts: "running", its start time now. Errors: not_found, device_error.
+  Status Started(const std::string& id);
   // Its final state: status is done, faulted or cancelled. Errors: not_found (no such job),
   // invalid_argument (another status), device_error.
   Status Finish(const std::string& id, const std::string& status, const std::string& reason);

@@ -7,11 +7,14 @@
 // that starts or ends.
 //
 // Jobs: `run` takes the same job files the CLI runs (a path, relative to jobs_dir, or the job
-// itself as an object) on an armed machine, one at a time (a second run is refused while one
-// runs); each job writes its report and artifacts into its own folder of the results store.
-// `cancel` stops it (the job stops at its next check, the head disarmed on every way out);
-// `result` and `list_results` read the store, which survives restarts. asio stays in
-// server.cc.
+// itself as an object) on an armed machine, one at a time (a further run is refused, or queued
+// when `queue` is set); each job writes its report and artifacts into its own folder of the
+// results store, and subscribers get its progress. `cancel` stops it (scans between lines, a
+// marking list within one head tick with the laser off; the head disarmed on every way out);
+// `result` and `list_results` read the store, which survives restarts.
+//
+// Roles: with `admin_token` set, only a client that authenticated with it may `shutdown`; with
+// no token at all every client may (a loopback-only daemon). asio stays in server.cc.
 #pragma once
 
 #include <cstddef>
@@ -27,12 +30,15 @@ namespace insitu::daemon {
 struct ServerOptions {
   std::string bind_address = "127.0.0.1";
   int port = 7450;    // 0: any free port (tests)
-  std::string token;  // empty: no authentication
+  std::string token;        // empty: no authentication
+  std::string admin_token;  // empty: shutdown only when no token is set either
   size_t max_line_bytes = kDefaultMaxLineBytes;
   int max_clients = 256;          // beyond: the connection is closed with an error line
   double idle_timeout_s = 300.0;  // a client silent this long (or stalled mid-line) is closed
   std::string results_dir = "insitu-results";
   std::string jobs_dir = ".";  // relative job paths and inline jobs' relative paths
+  bool queue = false;          // a run while a job runs: queued (true) or refused
+  int max_queued = 8;
 
   Status Validate() const;
 };

@@ -30,8 +30,18 @@ class Camera {
   virtual Status SetGain(double gain_db) = 0;
   // Pixels of the sensor averaged into one, per axis (1, 2 or 4).
   virtual Status SetBinning(int binning) = 0;
-  // Exposes once and returns the frame. Errors: device_error (timeout, lost packets).
-  virtual Result<Frame> Grab() = 0;
+  // Exposes once and returns the frame, checked: a frame whose payload does not match its
+  // size and bit depth, or whose size is not the sensor's at the frame's binning, is an error
+  // here and never reaches image code. Errors: device_error (timeout, lost packets, a corrupt
+  // frame, naming what is wrong).
+  Result<Frame> Grab();
+
+ protected:
+  // The backend's grab.
+  virtual Result<Frame> GrabFrame() = 0;
 };
+
+// Why `frame` cannot be what a camera with `info` delivers, or OK. The check Grab makes.
+Status CheckFrame(const Frame& frame, const CameraInfo& info);
 
 }  // namespace insitu::hw

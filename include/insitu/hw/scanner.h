@@ -4,6 +4,8 @@
 // the head is armed (ros2_control-style: connected is not armed).
 #pragma once
 
+#include <atomic>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -37,6 +39,17 @@ struct ScannerInfo {
   double clock_us = 10.0;
 };
 
+// How a running list is stopped, and what it tells while it runs.
+struct ListControl {
+  // Polled by the head while the list runs: on every list tick (simulator), on every status
+  // poll (a board streaming the list). Once true the laser goes off at once, the list is
+  // aborted and ExecuteList returns cancelled.
+  const std::atomic<bool>* abort = nullptr;
+  // Called on the executing thread with the fraction of the list's time done, about every
+  // 100 ms of list time and once at the end.
+  std::function<void(double fraction)> progress;
+};
+
 class Scanner {
  public:
   Scanner() = default;
@@ -57,9 +70,20 @@ class Scanner {
   virtual Status Arm() = 0;
   virtual Status Disarm() = 0;
   virtual bool armed() const = 0;
-  // Runs a list to completion; marks fire the marking laser. Errors: failed_precondition
-  // (not armed and the list marks), out_of_range (a point outside the field).
-  virtual Status ExecuteList(const GalvoList& list) = 0;
+  // Runs a list to completion or until aborted; marks fire the marking laser. Errors:
+  // failed_precondition (not armed and the list marks), out_of_range (a point outside the
+  // field), cancelled (aborted through control.abort: the laser is off, the head stopped where
+  // it was, the list's remainder not run).
+  Status ExecuteList(const GalvoList& list, const ListControl& control = {}) {
+    if (control.abort != nullptr && control.abort->load()) {
+      return Status(StatusCode::kCancelled, "list aborted before it started");
+    }
+    return RunList(list, control);
+  }
+
+ protected:
+  // The backend's list execution (ExecuteList has checked the abort flag once).
+  virtual Status RunList(const GalvoList& list, const ListControl& control) = 0;
 };
 
 }  // namespace insitu::hw

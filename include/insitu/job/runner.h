@@ -7,6 +7,7 @@
 #pragma once
 
 #include <atomic>
+#include <functional>
 #include <string>
 
 #include "insitu/core/status.h"
@@ -15,9 +16,23 @@
 
 namespace insitu::job {
 
+// How far a running job is: its phase ("scan", "mark", "board views", ...) and how much of
+// that phase is done, in the phase's unit ("lines", "s" of list time, "views", ...).
+struct JobProgress {
+  std::string phase;
+  double done = 0.0;
+  double total = 0.0;
+  std::string unit;
+};
+
 struct RunOptions {
   std::string out_dir = "insitu-out";
+  // Set from another thread to stop the job: scans stop between lines, a marking list is
+  // aborted by the head within one of its clock ticks (laser off), and the job ends cancelled.
   const std::atomic<bool>* cancel = nullptr;
+  // Called on the job's thread when a phase starts, then at most about every 0.2 s, and when
+  // it ends. May be empty.
+  std::function<void(const JobProgress&)> progress;
 };
 
 // Job kinds this build runs.

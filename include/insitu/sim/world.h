@@ -6,7 +6,10 @@
 // for tests that measure the algorithms against reality.
 #pragma once
 
+#include <atomic>
+#include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -48,11 +51,22 @@ struct MarkingParams {
 // the crater's centre, its diameter (0 if the fluence stayed under the surface's ablation
 // threshold), and how far the surface was from the beam waist along the beam (+: beyond it).
 struct MarkPulse {
+  double t_s = 0.0;  // virtual time of the pulse
   Eigen::Vector3d point_in_world = Eigen::Vector3d::Zero();
   double diameter_mm = 0.0;
   double defocus_mm = 0.0;
   double beam_radius_mm = 0.0;  // 1/e^2 radius of the beam on the surface
   bool on_part = false;
+};
+
+// The last list the head aborted (truth, for tests): when it started, when it would have
+// ended, the clock tick at which the head saw the abort flag, and the wall-clock instant it did.
+struct ListAbortTruth {
+  bool aborted = false;
+  double list_start_s = 0.0;
+  double list_end_s = 0.0;  // had it run to the end
+  double seen_at_s = 0.0;
+  std::chrono::steady_clock::time_point seen_wall;
 };
 
 class MarkMap;
@@ -96,7 +110,13 @@ class SimWorld {
   // list's speeds on the head's clock, the mirrors follow with their tracking lag, and every
   // laser pulse while the laser is on ablates a crater where the beam meets the surface (its
   // diameter from the pulse fluence at the beam radius there: D^2 = 2 w^2 ln(F0 / F_th)).
-  Status ExecuteMarkingList(const std::vector<ListMove>& moves, const MarkingParams& params);
+  // The head polls `abort` (may be null) on every tick: once it is set the laser goes off at
+  // that tick, the mirrors stop where the command was, and the call returns cancelled.
+  // `progress` (may be empty) gets the fraction of the list's time done about every 100 ms
+  // of list time.
+  Status ExecuteMarkingList(const std::vector<ListMove>& moves, const MarkingParams& params,
+                            const std::atomic<bool>* abort = nullptr,
+                            const std::function<void(double)>& progress = {});
   // Moves the mirrors and the focus to a point with every beam off (a jump), and waits for
   // them to settle: where the coaxial camera then looks.
   Status MoveHead(const Eigen::Vector3d& point_in_galvo);
@@ -140,6 +160,7 @@ class SimWorld {
   int64_t laser_on_ticks() const { return laser_on_ticks_; }
   // Every marking pulse so far.
   const std::vector<MarkPulse>& mark_pulses() const { return pulses_; }
+  const ListAbortTruth& last_list_abort() const { return last_abort_; }
 
  private:
   struct PointerProgram {
@@ -157,6 +178,10 @@ class SimWorld {
   // square of half-size `half_mm` (a camera pixel's footprint); 1 where nothing was marked.
   double MarkFactor(double x_mm, double y_mm, double half_mm) const;
   Eigen::Vector3d PointerCommandAt(double t) const;
+  // With options.real_time_factor > 0, sleeps until the wall clock has caught up with virtual
+  // time `t` (scaled). A stretch where the simulation ran slower than that re-anchors instead
+  // of letting virtual time race ahead afterwards.
+  void PaceTo(double t);
 
   WorldOptions options_;
   std::unique_ptr<Scene> scene_;
@@ -172,6 +197,10 @@ class SimWorld {
   uint64_t frame_counter_ = 0;
   int64_t laser_on_ticks_ = 0;
   std::vector<MarkPulse> pulses_;
+  ListAbortTruth last_abort_;
+  bool paced_ = false;
+  std::chrono::steady_clock::time_point pace_wall0_;
+  double pace_virtual0_ = 0.0;
   std::unique_ptr<MarkMap> marks_;  // what the pulses ablated, for the cameras
   std::unique_ptr<fit::ModelExtension> field_effects_;  // carried by the head (may be empty)
   Eigen::Vector3d last_command_ = Eigen::Vector3d::Zero();

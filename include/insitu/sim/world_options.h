@@ -194,6 +194,8 @@ struct BoardOptions {
 // once its count is reached; -1 never. Counted per machine (per job).
 struct FaultOptions {
   int camera_timeout_at_frame = -1;   // that frame grab times out (no frame arrives)
+  int camera_drop_frame_at = -1;      // that frame loses packets: the stream reports it
+  int camera_corrupt_frame_at = -1;   // that frame arrives with a truncated payload
   int scanner_error_at_command = -1;  // that scanner command (pointer line or list) fails
   bool stage_stuck = false;           // every stage move fails to arrive
 
@@ -210,6 +212,9 @@ struct WorldOptions {
   BoardOptions board;
   FaultOptions faults;
   uint64_t seed = 1;
+  // Virtual seconds per wall-clock second: 0 runs as fast as the computer can (tests, CI);
+  // 1 runs the devices in real time, as a daemon driving a real cell would see them.
+  double real_time_factor = 0.0;
 
   Status Validate() const;
 };

@@ -31,7 +31,9 @@ class SimScanner : public Scanner {
     return Status::Ok();
   }
   bool armed() const override { return armed_; }
-  Status ExecuteList(const GalvoList& list) override {
+
+ protected:
+  Status RunList(const GalvoList& list, const ListControl& control) override {
     INSITU_RETURN_IF_ERROR(InjectedFault());
     std::vector<sim::ListMove> moves;
     bool marks = false;
@@ -53,7 +55,7 @@ class SimScanner : public Scanner {
     params.laser_off_delay_us = list.laser_off_delay_us;
     params.jump_delay_us = list.jump_delay_us;
     params.mark_delay_us = list.mark_delay_us;
-    return world_->ExecuteMarkingList(moves, params);
+    return world_->ExecuteMarkingList(moves, params, control.abort, control.progress);
   }
 
  private:
@@ -84,13 +86,28 @@ class SimCamera : public Camera {
   Status SetExposure(double exposure_us) override { return world_->SetExposure(exposure_us); }
   Status SetGain(double gain_db) override { return world_->SetGain(gain_db); }
   Status SetBinning(int binning) override { return world_->SetBinning(binning); }
-  Result<Frame> Grab() override {
-    const int at = world_->options().faults.camera_timeout_at_frame;
-    if (at >= 0 && frames_++ == at) {
+
+ protected:
+  // Injected faults as a GigE camera shows them: no frame at all (a timeout), a frame that
+  // lost packets on the wire (the stream reports it incomplete), or one whose payload does
+  // not match its header (delivered: Camera::Grab's check catches it).
+  Result<Frame> GrabFrame() override {
+    const sim::FaultOptions& faults = world_->options().faults;
+    const int n = frames_++;
+    if (n == faults.camera_timeout_at_frame) {
       world_->Advance(1.0);  // the timeout's wait
       return Status(StatusCode::kDeviceError, "camera timeout: no frame within 1000 ms (injected)");
     }
-    return world_->Grab();
+    INSITU_ASSIGN_OR_RETURN(Frame frame, world_->Grab());
+    if (n == faults.camera_drop_frame_at) {
+      return Status(StatusCode::kDeviceError,
+                    "camera frame " + std::to_string(frame.sequence) +
+                        " incomplete: 412 of its 2187 packets lost on the link (injected)");
+    }
+    if (n == faults.camera_corrupt_frame_at) {
+      frame.bytes.resize(frame.bytes.size() / 3);  // the trailer came early
+    }
+    return frame;
   }
 
  private:
@@ -124,7 +141,9 @@ class SimCoaxialCamera : public Camera {
     if (binning != 1) return OutOfRange("the coaxial camera does not bin");
     return Status::Ok();
   }
-  Result<Frame> Grab() override { return world_->GrabCoaxial(exposure_us_); }
+
+ protected:
+  Result<Frame> GrabFrame() override { return world_->GrabCoaxial(exposure_us_); }
 
  private:
   std::shared_ptr<sim::SimWorld> world_;
