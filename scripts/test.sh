@@ -10,3 +10,6 @@ if [ "${INSITU_SLOW:-0}" = "1" ]; then
 else
   ctest --output-on-failure -j 2 -LE slow
 fi
+cd ..
+# The fuzz targets for a short fixed time (when clang is installed).
+scripts/fuzz.sh

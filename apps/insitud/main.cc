@@ -10,13 +10,16 @@
 #include <algorithm>
 #include <csignal>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <string>
 #include <thread>
 
+#include "insitu/calib/calibration.h"
 #include "insitu/core/config.h"
 #include "insitu/core/log.h"
 #include "insitu/daemon/server.h"
+#include "insitu/hw/machine.h"
 
 #ifndef INSITU_VERSION
 #define INSITU_VERSION "0.0.0"
@@ -29,14 +32,30 @@ struct DaemonConfig {
   std::string log_level = "info";
 };
 
+// A secret given inline or as a file of one line (never both); never logged.
+insitu::Status ReadSecret(const std::string& path, const std::string& key,
+                          const std::string& file, std::string* secret) {
+  if (file.empty()) return insitu::Status::Ok();
+  if (!secret->empty()) {
+    return insitu::InvalidArgument(path + ": give " + key + " or " + key + "_file, not both");
+  }
+  std::ifstream f(file);
+  if (!f || !std::getline(f, *secret) || secret->empty()) {
+    return insitu::NotFound(path + ": " + key + "_file " + file + " cannot be read or is empty");
+  }
+  return insitu::Status::Ok();
+}
+
 // Versioned YAML; unknown keys are warned with their line, bad values refused.
 insitu::Result<DaemonConfig> ReadConfig(const std::string& path) {
   INSITU_ASSIGN_OR_RETURN(insitu::ConfigNode root, insitu::ConfigNode::LoadFile(path));
   insitu::ConfigReader r(root);
   DaemonConfig c;
   const std::vector<std::string> known{
-      "version",  "bind_address",   "port",        "token",          "token_file", "results_dir",
-      "jobs_dir", "max_line_bytes", "max_clients", "idle_timeout_s", "log_level"};
+      "version",     "bind_address",     "port",           "token",       "token_file",
+      "admin_token", "admin_token_file", "results_dir",    "jobs_dir",    "machine",
+      "queue",       "max_queued",       "max_line_bytes", "max_clients", "idle_timeout_s",
+      "log_level"};
   for (const std::string& key : root.Keys()) {
     if (std::find(known.begin(), known.end(), key) == known.end()) {
       std::fprintf(stderr, "insitud: warning: %s: unknown key, ignored\n",
@@ -51,10 +70,20 @@ insitu::Result<DaemonConfig> ReadConfig(const std::string& path) {
   r.Read("bind_address", &c.server.bind_address);
   r.Read("port", &c.server.port);
   r.Read("token", &c.server.token);
-  std::string token_file;
+  std::string token_file, admin_token_file;
   r.Read("token_file", &token_file);
+  r.Read("admin_token", &c.server.admin_token);
+  r.Read("admin_token_file", &admin_token_file);
   r.Read("results_dir", &c.server.results_dir);
   r.Read("jobs_dir", &c.server.jobs_dir);
+  if (r.Has("machine")) {
+    insitu::ConfigReader& m = r.Section("machine");
+    m.Require("backend");
+    m.ReadEnum("backend", &c.server.backend, insitu::hw::BackendNames());
+    m.Read("calibration", &c.server.calibration);
+  }
+  r.Read("queue", &c.server.queue);
+  r.Read("max_queued", &c.server.max_queued);
   int max_line = static_cast<int>(c.server.max_line_bytes);
   r.Read("max_line_bytes", &max_line);
   c.server.max_line_bytes = static_cast<size_t>(std::max(0, max_line));
@@ -63,15 +92,18 @@ insitu::Result<DaemonConfig> ReadConfig(const std::string& path) {
   r.ReadEnum("log_level", &c.log_level, {"trace", "debug", "info", "warn", "error", "off"});
   if (r.ok()) r.FailFromValidate(c.server.Validate());
   INSITU_RETURN_IF_ERROR(r.Finish());
-  if (!token_file.empty()) {
-    if (!c.server.token.empty()) {
-      return insitu::InvalidArgument(path + ": give token or token_file, not both");
-    }
-    std::ifstream f(token_file);
-    if (!f || !std::getline(f, c.server.token) || c.server.token.empty()) {
-      return insitu::NotFound(path + ": token_file " + token_file + " cannot be read or is empty");
+  INSITU_RETURN_IF_ERROR(ReadSecret(path, "token", token_file, &c.server.token));
+  INSITU_RETURN_IF_ERROR(
+      ReadSecret(path, "admin_token", admin_token_file, &c.server.admin_token));
+  if (!c.server.calibration.empty()) {
+    // Checked now: a daemon that would fail every job on its calibration does not start.
+    c.server.calibration = std::filesystem::absolute(c.server.calibration).string();
+    const auto calibration = insitu::calib::LoadCalibration(c.server.calibration);
+    if (!calibration.ok()) {
+      return calibration.status().Prefixed(path + ": machine.calibration");
     }
   }
+  INSITU_RETURN_IF_ERROR(c.server.Validate().Prefixed(path));
   return c;
 }
 

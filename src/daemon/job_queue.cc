@@ -30,8 +30,9 @@ Result<Submitted> JobQueue::Submit(job::LoadedJob job) {
     INSITU_ASSIGN_OR_RETURN(JobRecord record, store_->Begin(job.kind, /*queued=*/true));
     queue_.push_back({std::move(job), record});
     const int position = static_cast<int>(queue_.size());
-    emit_("job", {{"job_id", record.id}, {"job", record.job}, {"status", "queued"},
-                  {"position", position}});
+    emit_(
+        "job",
+        {{"job_id", record.id}, {"job", record.job}, {"status", "queued"}, {"position", position}});
     return Submitted{record.id, record.job, position};
   }
   INSITU_RETURN_IF_ERROR(state_->Start());
@@ -157,8 +158,8 @@ void JobQueue::RunOne(const Entry& entry) {
   run.out_dir = rec.dir;
   run.cancel = &cancel_;
   run.progress = [this, id = rec.id](const job::JobProgress& p) {
-    nlohmann::json fields = {{"job_id", id},       {"phase", p.phase}, {"done", p.done},
-                             {"total", p.total},   {"unit", p.unit}};
+    nlohmann::json fields = {
+        {"job_id", id}, {"phase", p.phase}, {"done", p.done}, {"total", p.total}, {"unit", p.unit}};
     {
       std::lock_guard<std::mutex> lock(mutex_);
       progress_ = fields;
@@ -172,8 +173,9 @@ void JobQueue::RunOne(const Entry& entry) {
   const std::string status = report.ok() && report->ok ? "done"
                              : cancelled               ? "cancelled"
                                                        : "faulted";
-  const std::string reason =
-      status == "done" ? "" : report.ok() ? report->error : report.status().message();
+  const std::string reason = status == "done" ? ""
+                             : report.ok()    ? report->error
+                                              : report.status().message();
   (void)store_->Finish(rec.id, status, reason);
   (void)state_->Finish(status == "done"        ? JobOutcome::kDone
                        : status == "cancelled" ? JobOutcome::kCancelled

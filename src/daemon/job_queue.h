@@ -79,7 +79,7 @@ class JobQueue {
   mutable std::mutex mutex_;
   std::condition_variable wake_;
   std::deque<Entry> queue_;
-  bool busy_ = false;      // a job is running (or about to, on the worker)
+  bool busy_ = false;  // a job is running (or about to, on the worker)
   bool stopping_ = false;
   std::string running_id_, running_kind_;
   nlohmann::json progress_;  // the running job's last progress event, or null

@@ -312,20 +312,18 @@ std::string Server::Impl::Run(const Request& r) {
       sets.push_back(it.key() + "=" + (v.is_string() ? v.get<std::string>() : v.dump()));
     }
   }
+  // The daemon's machine wins over the job's and the client's: it owns the cell.
+  if (!options.backend.empty()) sets.push_back("machine.backend=" + options.backend);
+  if (!options.calibration.empty()) sets.push_back("machine.calibration=" + options.calibration);
   const nlohmann::json& spec = r.body["job"];
   Result<job::LoadedJob> loaded =
       spec.is_string()
           ? job::LoadJobFile(job::ResolvePath(options.jobs_dir, spec.get<std::string>()), sets)
           : job::LoadJobText(spec.dump(), "<run request>", options.jobs_dir, sets);
   if (!loaded.ok()) return ReplyError(r.id, loaded.status());
-  const std::vector<std::string> kinds = job::JobKinds();
-  if (std::find(kinds.begin(), kinds.end(), loaded->kind) == kinds.end()) {
-    std::string known;
-    for (const std::string& k : kinds) known += (known.empty() ? "" : ", ") + k;
-    return ReplyError(
-        r.id, "bad_argument",
-        loaded->path + ": unknown job kind '" + loaded->kind + "' (known: " + known + ")");
-  }
+  // Refused here, by file, line and key, before the machine is touched.
+  const Status checked = job::CheckJob(*loaded);
+  if (!checked.ok()) return ReplyError(r.id, checked);
   auto submitted = jobs->Submit(std::move(*loaded));
   if (!submitted.ok()) return ReplyError(r.id, submitted.status());
   nlohmann::json fields = {{"job_id", submitted->id}, {"job", submitted->kind}};

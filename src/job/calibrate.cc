@@ -143,6 +143,12 @@ Status SaveOverlay(const Frame& frame, const std::vector<Eigen::Vector2d>& point
 
 }  // namespace
 
+Status CheckCalibrateJob(const LoadedJob& job) {
+  CalibrateSpec spec;
+  hw::MachineConfig config;
+  return ReadSpec(job, &spec, &config);
+}
+
 Result<Report> RunCalibrateJob(const LoadedJob& job, const RunOptions& options) {
   const auto wall_start = std::chrono::steady_clock::now();
   CalibrateSpec spec;

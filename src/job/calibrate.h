@@ -6,5 +6,7 @@
 namespace insitu::job {
 
 Result<Report> RunCalibrateJob(const LoadedJob& job, const RunOptions& options);
+// Reads every section as RunCalibrateJob does, touching nothing.
+Status CheckCalibrateJob(const LoadedJob& job);
 
 }  // namespace insitu::job

@@ -323,6 +323,14 @@ struct ArmGuard {
 
 }  // namespace
 
+Status CheckMarkJob(const LoadedJob& job) {
+  ScanJobSpec spec;
+  MarkJobSpec mark;
+  hw::MachineConfig machine_config;
+  return ReadScanJob(job, &spec, &machine_config,
+                     [&](ConfigReader& r) { ReadMarkSections(r, job.folder, &mark); });
+}
+
 Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
   const auto wall_start = std::chrono::steady_clock::now();
   ScanJobSpec spec;
@@ -500,11 +508,11 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
     log->info("mark: {} marks, {:.1f} mm, ~{:.1f} s", plan.marks, plan.marked_length_mm,
               report.metrics["list_duration_s"]);
     // Cancel reaches the head while the list runs: it aborts within one of its clock ticks.
-    const double list_s = report.metrics["list_duration_s"];
-    PhaseProgress marking(options, "mark", "s", list_s);
+    const double list_ms = std::round(report.metrics["list_duration_s"] * 1e3);
+    PhaseProgress marking(options, "mark", "ms", list_ms);
     hw::ListControl control;
     control.abort = options.cancel;
-    control.progress = [&](double fraction) { marking.Update(fraction * list_s); };
+    control.progress = [&](double fraction) { marking.Update(std::round(fraction * list_ms)); };
     const Status ran = up.machine.scanner->ExecuteList(ToHeadList(*list, correction), control);
     if (!ran.ok()) return finish(false, "marking: " + ran.ToString());
   }

@@ -7,5 +7,7 @@
 namespace insitu::job {
 
 Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options);
+// Reads every section as RunMarkJob does, touching nothing.
+Status CheckMarkJob(const LoadedJob& job);
 
 }  // namespace insitu::job

@@ -14,7 +14,7 @@ class PhaseProgress {
  public:
   PhaseProgress(const RunOptions& options, std::string phase, std::string unit, double total)
       : options_(options),
-        log_("job", phase + " " + unit, static_cast<int>(total)),
+        log_("job", phase + ": " + unit, static_cast<int>(total)),
         phase_(std::move(phase)),
         unit_(std::move(unit)),
         total_(total) {

@@ -126,16 +126,21 @@ void AddInsertMetrics(const InsertResult& r, const InsertSpec& s, Report* report
   m["insert_hole_fit_rms_mm"] = r.hole_fit_rms_mm;
 }
 
+Status ReadScanKinds(const LoadedJob& job, ScanJobSpec* spec, hw::MachineConfig* machine_config) {
+  INSITU_RETURN_IF_ERROR(ReadScanJob(job, spec, machine_config, [&](ConfigReader& r) {
+    ReadArtifact(r, spec);
+  }));
+  if (job.kind == "accuracy" && spec->artifact != "step_gauge") {
+    return InvalidArgument(job.path + ": an accuracy job needs an artifact: of kind step_gauge");
+  }
+  return Status::Ok();
+}
+
 Result<Report> RunScanJob(const LoadedJob& job, const RunOptions& options) {
   const auto wall_start = std::chrono::steady_clock::now();
   ScanJobSpec spec;
   hw::MachineConfig machine_config;
-  INSITU_RETURN_IF_ERROR(ReadScanJob(job, &spec, &machine_config, [&](ConfigReader& r) {
-    ReadArtifact(r, &spec);
-  }));
-  if (job.kind == "accuracy" && spec.artifact != "step_gauge") {
-    return InvalidArgument(job.path + ": an accuracy job needs an artifact: of kind step_gauge");
-  }
+  INSITU_RETURN_IF_ERROR(ReadScanKinds(job, &spec, &machine_config));
   INSITU_ASSIGN_OR_RETURN(ScanMachine up, BringUp(job, spec, machine_config));
   hw::Machine& machine = up.machine;
   const calib::CalibrationSet& calibration = up.calibration;
@@ -251,13 +256,32 @@ Result<Report> RunScanJob(const LoadedJob& job, const RunOptions& options) {
 
 std::vector<std::string> JobKinds() { return {"scan", "accuracy", "calibrate", "mark"}; }
 
+namespace {
+
+Status UnknownKind(const LoadedJob& job) {
+  std::string kinds;
+  for (const std::string& k : JobKinds()) kinds += (kinds.empty() ? "" : ", ") + k;
+  return InvalidArgument(job.path + ": job: unknown kind '" + job.kind + "' (known: " + kinds + ")");
+}
+
+}  // namespace
+
+Status CheckJob(const LoadedJob& job) {
+  if (job.kind == "scan" || job.kind == "accuracy") {
+    ScanJobSpec spec;
+    hw::MachineConfig machine_config;
+    return ReadScanKinds(job, &spec, &machine_config);
+  }
+  if (job.kind == "calibrate") return CheckCalibrateJob(job);
+  if (job.kind == "mark") return CheckMarkJob(job);
+  return UnknownKind(job);
+}
+
 Result<Report> RunJob(const LoadedJob& job, const RunOptions& options) {
   if (job.kind == "scan" || job.kind == "accuracy") return RunScanJob(job, options);
   if (job.kind == "calibrate") return RunCalibrateJob(job, options);
   if (job.kind == "mark") return RunMarkJob(job, options);
-  std::string kinds;
-  for (const std::string& k : JobKinds()) kinds += (kinds.empty() ? "" : ", ") + k;
-  return InvalidArgument(job.path + ": job: unknown kind '" + job.kind + "' (known: " + kinds + ")");
+  return UnknownKind(job);
 }
 
 }  // namespace insitu::job

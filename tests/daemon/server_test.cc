@@ -3,6 +3,8 @@
 // authentication, state events to subscribers, and 100 clients at once.
 #include "insitu/daemon/server.h"
 
+#include "support/line_client.h"
+
 #define ASIO_STANDALONE
 #include <gtest/gtest.h>
 #include <poll.h>
@@ -21,72 +23,9 @@
 namespace insitu::daemon {
 namespace {
 
-// A blocking client whose reads give up after 10 s (a hung daemon fails the test, never hangs it).
-class Client {
- public:
-  explicit Client(int port) : socket_(io_) {
-    socket_.connect({asio::ip::make_address("127.0.0.1"), static_cast<unsigned short>(port)});
-  }
-  void SendRaw(const std::string& bytes) { asio::write(socket_, asio::buffer(bytes)); }
-  // The next line, without its newline; "" when the connection closed (or timed out). Events
-  // that arrived while a call waited for its reply come first.
-  std::string ReadLine() {
-    if (!pending_.empty()) {
-      std::string line = pending_.front();
-      pending_.pop_front();
-      return line;
-    }
-    asio::error_code ec;
-    const size_t n = asio::read_until(socket_, buffer_, '\n', ec);
-    if (ec) return "";
-    std::string line(asio::buffers_begin(buffer_.data()),
-                     asio::buffers_begin(buffer_.data()) + n - 1);
-    buffer_.consume(n);
-    return line;
-  }
-  // Sends a request and returns its reply; events that come first are kept for ReadLine.
-  nlohmann::json Call(const std::string& line) {
-    SendRaw(line + "\n");
-    for (;;) {
-      const std::string reply = NextLine();
-      if (reply.empty()) return nlohmann::json();
-      const auto j = nlohmann::json::parse(reply, nullptr, false);
-      if (j.is_object() && j.contains("event")) {
-        pending_.push_back(reply);
-        continue;
-      }
-      return j;
-    }
-  }
-  bool Closed() { return ReadLine().empty(); }
-
- private:
-  // One line from the socket, waiting at most 10 s for it (poll: asio's blocking reads ignore
-  // SO_RCVTIMEO); "" on close or timeout.
-  std::string NextLine() {
-    for (;;) {
-      const auto begin = asio::buffers_begin(buffer_.data());
-      const auto end = asio::buffers_end(buffer_.data());
-      const auto nl = std::find(begin, end, '\n');
-      if (nl != end) {
-        std::string line(begin, nl);
-        buffer_.consume(line.size() + 1);
-        return line;
-      }
-      pollfd p{socket_.native_handle(), POLLIN, 0};
-      if (poll(&p, 1, 10000) <= 0) return "";
-      asio::error_code ec;
-      const size_t n = socket_.read_some(buffer_.prepare(4096), ec);
-      if (ec || n == 0) return "";
-      buffer_.commit(n);
-    }
-  }
-
-  asio::io_context io_;
-  asio::ip::tcp::socket socket_;
-  asio::streambuf buffer_;
-  std::deque<std::string> pending_;
-};
+using testing::Client;
+using testing::Pong;
+using testing::WaitForJobEnd;
 
 ServerOptions Loopback(const char* results = "insitu_server_test_results") {
   ServerOptions o;
@@ -95,11 +34,6 @@ ServerOptions Loopback(const char* results = "insitu_server_test_results") {
   o.results_dir = (std::filesystem::temp_directory_path() / results).string();
   o.jobs_dir = INSITU_SOURCE_DIR;
   return o;
-}
-
-bool Pong(Client& c) {
-  const auto r = c.Call(R"({"id": "p", "cmd": "ping"})");
-  return r.is_object() && r["ok"] == true && r["pong"] == true && r["id"] == "p";
 }
 
 TEST(Server, ServesTheStateCommandsAndEvents) {
@@ -200,19 +134,6 @@ TEST(Server, BadOptionsAndABusyPortAreNamed) {
   EXPECT_NE(busy.message().find(std::to_string(first.port())), std::string::npos);
 }
 
-// Reads lines until a job event with a final status (done, faulted, cancelled).
-nlohmann::json WaitForJobEnd(Client& c) {
-  for (int k = 0; k < 200; ++k) {
-    const std::string line = c.ReadLine();
-    if (line.empty()) return nullptr;
-    const auto j = nlohmann::json::parse(line, nullptr, false);
-    if (j.is_object() && j.value("event", "") == "job" && j.value("status", "") != "running") {
-      return j;
-    }
-  }
-  return nullptr;
-}
-
 TEST(Server, RunsAScanJobAndKeepsItsResultAcrossARestart) {
   std::filesystem::remove_all(std::filesystem::temp_directory_path() / "insitu_server_jobs");
   std::string job_id;
@@ -267,6 +188,9 @@ TEST(Server, InjectedFaultsFaultTheJobNotTheDaemon) {
   const std::vector<std::pair<std::string, std::string>> faults{
       {R"("world.faults.camera_timeout_at_frame": 1)", "camera timeout"},
       {R"("world.faults.scanner_error_at_command": 1)", "scan head error"},
+      {R"("world.faults.camera_drop_frame_at": 1)", "packets lost"},
+      // A truncated payload is caught before any image code reads past its end.
+      {R"("world.faults.camera_corrupt_frame_at": 2)", "corrupt"},
   };
   for (const auto& [fault, words] : faults) {
     ASSERT_EQ(c.Call(R"({"id": 2, "cmd": "arm"})")["ok"], true);

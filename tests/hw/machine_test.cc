@@ -72,4 +72,45 @@ TEST(Machine, InjectedFaultsAreDeviceErrors) {
   EXPECT_NE(stage.message().find("did not arrive"), std::string::npos);
 }
 
+// A frame that lost packets is an error; one whose payload does not match its header is
+// caught by Camera::Grab before any image code could read past its end.
+TEST(Machine, DroppedAndCorruptFramesAreDeviceErrors) {
+  sim::WorldOptions w;
+  w.faults.camera_drop_frame_at = 0;
+  w.faults.camera_corrupt_frame_at = 1;
+  Machine m = MakeSimMachine(std::make_shared<sim::SimWorld>(w));
+  const auto dropped = m.camera->Grab();
+  ASSERT_FALSE(dropped.ok());
+  EXPECT_EQ(dropped.status().code(), StatusCode::kDeviceError);
+  EXPECT_NE(dropped.status().message().find("packets lost"), std::string::npos);
+  const auto corrupt = m.camera->Grab();
+  ASSERT_FALSE(corrupt.ok());
+  EXPECT_EQ(corrupt.status().code(), StatusCode::kDeviceError);
+  EXPECT_NE(corrupt.status().message().find("corrupt"), std::string::npos)
+      << corrupt.status().message();
+  EXPECT_TRUE(m.camera->Grab().ok());  // the next frame is whole
+}
+
+TEST(Machine, CheckFrameNamesWhatIsWrong) {
+  const CameraInfo info{"cam", "1", 64, 48, 12};
+  Frame f;
+  f.width = 32;
+  f.height = 24;
+  f.bit_depth = 12;
+  f.binning = 2;
+  f.bytes.assign(32 * 24 * 2, 0);
+  EXPECT_TRUE(CheckFrame(f, info).ok());
+  Frame short_payload = f;
+  short_payload.bytes.resize(100);
+  EXPECT_NE(CheckFrame(short_payload, info).message().find("payload is 100 bytes"),
+            std::string::npos);
+  Frame eight_bit = f;
+  eight_bit.bit_depth = 8;
+  eight_bit.bytes.resize(32 * 24);
+  EXPECT_NE(CheckFrame(eight_bit, info).message().find("set to 12 bits"), std::string::npos);
+  Frame unbinned = f;  // 32 x 24 px claimed at binning 4 of a 64 x 48 sensor: too large
+  unbinned.binning = 4;
+  EXPECT_NE(CheckFrame(unbinned, info).message().find("does not fit"), std::string::npos);
+}
+
 }  // namespace insitu::hw

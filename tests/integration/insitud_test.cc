@@ -88,9 +88,35 @@ TEST(Insitud, ServesUntilShutdownOrSigterm) {
 }
 
 TEST(Insitud, ABadConfigIsOneLineAndExit2) {
-  const Daemon d = Start("version: 1\nport: 70000\n");
-  EXPECT_EQ(d.port, 0);
-  EXPECT_EQ(ExitCode(d.pid), 2);
+  for (const char* config : {
+           "version: 1\nport: 70000\n",
+           "version: 1\nport: 0\nmachine:\n  backend: teleport\n",  // no such backend
+           "version: 1\nport: 0\nmachine:\n  backend: sim\n  calibration: calib/none.yaml\n",
+           "version: 1\nport: 0\nqueue: true\nmax_queued: 0\n",
+           "version: 1\nport: 0\ntoken: same\nadmin_token: same\n",
+       }) {
+    const Daemon d = Start(config);
+    EXPECT_EQ(d.port, 0) << config;
+    EXPECT_EQ(ExitCode(d.pid), 2) << config;
+  }
+}
+
+// The shipped example's keys, with the cell's machine, a queue and an admin token: only the
+// admin client may stop it.
+TEST(Insitud, TheDaemonsMachineQueueAndAdmin) {
+  const Daemon d = Start(
+      "version: 1\nport: 0\nmachine:\n  backend: sim\n  calibration: calib/as_designed.yaml\n"
+      "queue: true\nmax_queued: 4\ntoken: op\nadmin_token: boss\n");
+  ASSERT_GT(d.port, 0);
+  asio::io_context io;
+  asio::ip::tcp::socket op(io), admin(io);
+  op.connect({asio::ip::make_address("127.0.0.1"), static_cast<unsigned short>(d.port)});
+  EXPECT_EQ(Call(op, R"({"id": 1, "cmd": "auth", "token": "op"})")["role"], "operator");
+  EXPECT_EQ(Call(op, R"({"id": 2, "cmd": "shutdown"})")["error"]["code"], "forbidden");
+  admin.connect({asio::ip::make_address("127.0.0.1"), static_cast<unsigned short>(d.port)});
+  EXPECT_EQ(Call(admin, R"({"id": 1, "cmd": "auth", "token": "boss"})")["role"], "admin");
+  EXPECT_EQ(Call(admin, R"({"id": 2, "cmd": "shutdown"})")["ok"], true);
+  EXPECT_EQ(ExitCode(d.pid), 0);
 }
 
 }  // namespace

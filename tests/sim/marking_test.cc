@@ -1,6 +1,7 @@
 // The simulated marking laser: craters where the beam meets the surface, their size from the
 // pulse fluence and the beam radius there (so marks widen out of focus), the pulse spacing
 // from speed and rate, and the mirrors' lag that the RTC delays exist to compensate.
+#include <atomic>
 #include <cmath>
 
 #include <gtest/gtest.h>
@@ -29,6 +30,42 @@ double ExpectedDiameter(const WorldOptions& o, double defocus_mm, double thresho
 
 std::vector<ListMove> Line(double z_focus) {
   return {{ListMove::Kind::kJump, {-2.0, 5.0, z_focus}}, {ListMove::Kind::kMark, {3.0, 5.0, z_focus}}};
+}
+
+// An abort flag set while the list runs (here by the progress callback, a third of the way
+// in) stops the laser on the tick the head sees it: no pulse after it, and the list's rest is
+// not run.
+TEST(Marking, AnAbortedListStopsTheLaserOnTheTickItIsSeen) {
+  SimWorld w(Plate());
+  MarkingParams p;
+  p.jump_delay_us = 2000;
+  std::vector<ListMove> moves;
+  for (int k = 0; k < 20; ++k) {  // 20 lines of 10 mm at 1000 mm/s: 0.2 s of marking
+    moves.push_back({ListMove::Kind::kJump, {-5.0, -5.0 + 0.5 * k, 0.0}});
+    moves.push_back({ListMove::Kind::kMark, {5.0, -5.0 + 0.5 * k, 0.0}});
+  }
+  std::atomic<bool> abort{false};
+  double asked_at = -1.0;
+  const Status s = w.ExecuteMarkingList(moves, p, &abort, [&](double fraction) {
+    if (fraction >= 0.3 && !abort) {
+      abort = true;
+      asked_at = fraction;
+    }
+  });
+  EXPECT_EQ(s.code(), StatusCode::kCancelled);
+  const ListAbortTruth& a = w.last_list_abort();
+  ASSERT_TRUE(a.aborted);
+  ASSERT_GT(asked_at, 0.0);
+  const double tick_s = Plate().scan_head.clock_us * 1e-6;
+  const double list_s = a.list_end_s - a.list_start_s;
+  // Seen on the very next tick after the flag was set (the callback runs before the tick's
+  // check on the following iteration).
+  EXPECT_NEAR(a.seen_at_s - a.list_start_s, asked_at * list_s, 1.5 * tick_s);
+  double last = 0.0;
+  for (const MarkPulse& q : w.mark_pulses()) last = std::max(last, q.t_s);
+  EXPECT_LE(last, a.seen_at_s + 1e-12);
+  EXPECT_GT(last, a.seen_at_s - 0.01);  // the laser was on until then (it was marking)
+  EXPECT_NEAR(w.now_s(), a.seen_at_s, 1e-12);  // the clock stops with the list
 }
 
 TEST(Marking, CratersInFocusAlongTheLine) {

@@ -37,6 +37,10 @@ struct ServerOptions {
   double idle_timeout_s = 300.0;  // a client silent this long (or stalled mid-line) is closed
   std::string results_dir = "insitu-results";
   std::string jobs_dir = ".";  // relative job paths and inline jobs' relative paths
+  // The cell this daemon drives: every job runs on this backend with this calibration file,
+  // whatever its own machine: section says. Empty: the job's own.
+  std::string backend;
+  std::string calibration;
   bool queue = false;          // a run while a job runs: queued (true) or refused
   int max_queued = 8;
 

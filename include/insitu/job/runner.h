@@ -38,6 +38,12 @@ struct RunOptions {
 // Job kinds this build runs.
 std::vector<std::string> JobKinds();
 
+// Reads every section of the job strictly, as RunJob will, without bringing up the machine or
+// writing anything: the errors RunJob would give before moving (unknown or bad keys, with
+// file, line and key; an unknown kind). Pattern, calibration and table files are read by
+// RunJob, before the machine moves.
+Status CheckJob(const LoadedJob& job);
+
 Result<Report> RunJob(const LoadedJob& job, const RunOptions& options);
 
 }  // namespace insitu::job
