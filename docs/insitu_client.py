@@ -67,7 +67,14 @@ def main():
         e = c.event()
         if e.get("event") == "state":
             print(f"  state: {e['from']} -> {e['to']}" + (f" ({e['reason']})" if e.get("reason") else ""))
-        elif e.get("event") == "job" and e.get("job_id") == job_id and e["status"] != "running":
+        elif e.get("event") == "progress" and e.get("job_id") == job_id:
+            total = e["total"] or 1
+            print(f"  {e['phase']}: {e['done']:g}/{e['total']:g} {e['unit']} "
+                  f"({100.0 * e['done'] / total:.0f}%)")
+        elif e.get("event") == "job" and e.get("job_id") == job_id and e["status"] == "queued":
+            print(f"  queued, position {e['position']}")
+        elif e.get("event") == "job" and e.get("job_id") == job_id and e["status"] not in (
+                "running", "queued"):
             print(f"  job {e['status']}" + (f": {e['reason']}" if e.get("reason") else ""))
             break
     result = c.call("result", job_id=job_id)

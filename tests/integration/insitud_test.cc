@@ -87,6 +87,80 @@ TEST(Insitud, ServesUntilShutdownOrSigterm) {
   }
 }
 
+// The example client in docs/ runs a job against insitud and follows its progress to the end.
+TEST(Insitud, TheExampleClientRunsAJobAndFollowsIt) {
+  const Daemon d = Start("version: 1\nport: 0\nresults_dir: " +
+                         (fs::temp_directory_path() / "insitud_client_results").string() + "\n");
+  ASSERT_GT(d.port, 0);
+  const std::string command = "python3 docs/insitu_client.py config/jobs/scan_step_gauge.yaml"
+                              " --port " + std::to_string(d.port) +
+                              " --set scan.x_start_mm=-3 --set scan.x_end_mm=-2 2>&1";
+  FILE* p = popen(command.c_str(), "r");
+  ASSERT_NE(p, nullptr);
+  std::string out;
+  char buf[512];
+  while (fgets(buf, sizeof buf, p) != nullptr) out += buf;
+  EXPECT_EQ(pclose(p), 0) << out;
+  EXPECT_NE(out.find("scan: 3/3 lines (100%)"), std::string::npos) << out;
+  EXPECT_NE(out.find("job done"), std::string::npos) << out;
+  EXPECT_NE(out.find("points = "), std::string::npos) << out;
+  kill(d.pid, SIGTERM);
+  EXPECT_EQ(ExitCode(d.pid), 0);
+}
+
+// SIGTERM during a job: the job is cancelled and saved, insitud exits 0. SIGKILL during a job:
+// after the restart the job is listed interrupted, never done.
+TEST(Insitud, AJobSurvivesAsCancelledOrInterruptedAcrossRestarts) {
+  const std::string results = (fs::temp_directory_path() / "insitud_restart_results").string();
+  fs::remove_all(results);
+  const std::string config = "version: 1\nport: 0\nresults_dir: " + results + "\n";
+  const auto start_job = [&](const Daemon& d) {
+    asio::io_context io;
+    asio::ip::tcp::socket s(io);
+    s.connect({asio::ip::make_address("127.0.0.1"), static_cast<unsigned short>(d.port)});
+    EXPECT_EQ(Call(s, R"({"id": 1, "cmd": "arm"})")["ok"], true);
+    // The whole step-gauge scan: many seconds.
+    const auto r = Call(s, R"({"id": 2, "cmd": "run", "job": "config/jobs/scan_step_gauge.yaml"})");
+    EXPECT_EQ(r["ok"], true) << r.dump();
+    return r.value("job_id", std::string());
+  };
+  const auto list = [&]() {
+    const Daemon d = Start(config);
+    asio::io_context io;
+    asio::ip::tcp::socket s(io);
+    s.connect({asio::ip::make_address("127.0.0.1"), static_cast<unsigned short>(d.port)});
+    const auto r = Call(s, R"({"id": 1, "cmd": "list_results"})");
+    kill(d.pid, SIGTERM);
+    EXPECT_EQ(ExitCode(d.pid), 0);
+    return r["results"];
+  };
+  {
+    const Daemon d = Start(config);
+    ASSERT_GT(d.port, 0);
+    const std::string id = start_job(d);
+    usleep(500 * 1000);
+    kill(d.pid, SIGTERM);
+    EXPECT_EQ(ExitCode(d.pid), 0);
+    const auto results = list();
+    ASSERT_EQ(results.size(), 1u);
+    EXPECT_EQ(results[0]["job_id"], id);
+    EXPECT_EQ(results[0]["status"], "cancelled");
+  }
+  {
+    const Daemon d = Start(config);
+    ASSERT_GT(d.port, 0);
+    const std::string id = start_job(d);
+    usleep(500 * 1000);
+    kill(d.pid, SIGKILL);
+    ExitCode(d.pid);
+    const auto results = list();
+    ASSERT_EQ(results.size(), 2u);
+    EXPECT_EQ(results[0]["job_id"], id);
+    EXPECT_EQ(results[0]["status"], "interrupted");
+    EXPECT_EQ(results[1]["status"], "cancelled");  // the first one, as it was
+  }
+}
+
 TEST(Insitud, ABadConfigIsOneLineAndExit2) {
   for (const char* config : {
            "version: 1\nport: 70000\n",
