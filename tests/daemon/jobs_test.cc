@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <memory>
 #include <string>
@@ -164,6 +165,10 @@ TEST(Jobs, CancelWhileMarkingTurnsTheLaserOffWithinOneHeadTick) {
   // Cancel to head: socket round trip, the daemon's handler and the head's 1 ms pacing sleep.
   // 250 ms bounds these on a loaded 2-core machine; the head itself polls on every 10 us tick.
   const double latency_s = std::chrono::duration<double>(abort.seen_wall - cancel_sent).count();
+  std::printf("cancel to head: %.1f ms; aborted %.1f of %.1f ms into the list; last pulse %.1f us "
+              "before the abort tick\n",
+              latency_s * 1e3, (abort.seen_at_s - abort.list_start_s) * 1e3,
+              (abort.list_end_s - abort.list_start_s) * 1e3, (abort.seen_at_s - last_pulse_s) * 1e6);
   EXPECT_LT(latency_s, 0.25);
   EXPECT_GT(latency_s, -0.001);
 
