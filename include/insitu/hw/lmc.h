@@ -1,0 +1,156 @@
+// BJJCZ "LMC" (EzCad2-class) galvo boards over USB: the list encoder, the board protocol and a
+// Scanner on top of them, behind a byte transport so the same code drives a real board
+// (libusb) or the board emulator (lmc_sim_board.h).
+//
+// Protocol facts (docs/hardware.md, "LMC"): single commands are 12 bytes, six little-endian
+// uint16 (opcode, p1..p5), answered by 8 bytes whose word 3 is the status (BUSY 0x04,
+// READY 0x20); lists go out in 3072-byte packets of 256 such commands, padded with end-of-list
+// (0x8002). Positions are 16-bit, 65536 units across the lens field, centre 0x8000.
+//
+// The RTC-style GalvoList maps onto list opcodes: the list's parameters first (speeds in units
+// per ms, laser on/off delays and the polygon delay in us, mark current 0..0xFFF from the
+// power fraction, Q-switch period from the pulse rate), then JumpTo/MarkTo with the straight
+// distance from the previous point, a JumpDelay after each jump and a DelayTime (10 us units)
+// after each mark sequence for the list's jump and mark delays. z (focus) goes out as the
+// board's Z DA word (0x8029) before a point whose z changed, when the head has a focus shifter
+// on that output (focus: da_z_word); its scale is the shifter's, from its data sheet.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "insitu/core/status.h"
+#include "insitu/hw/scanner.h"
+
+namespace insitu::hw::lmc {
+
+// List opcodes.
+enum ListOp : uint16_t {
+  kJumpTo = 0x8001,
+  kEndOfList = 0x8002,
+  kDelayTime = 0x8004,
+  kMarkTo = 0x8005,
+  kJumpSpeed = 0x8006,
+  kLaserOnDelay = 0x8007,
+  kLaserOffDelay = 0x8008,
+  kMarkSpeed = 0x800C,
+  kJumpDelay = 0x800D,
+  kPolygonDelay = 0x800F,
+  kWritePortList = 0x8011,
+  kMarkCurrent = 0x8012,
+  kQSwitchPeriod = 0x801B,
+  kSetDaZWord = 0x8029,
+  kReadyMark = 0x8051,
+};
+
+// Single-command opcodes.
+enum SingleOp : uint16_t {
+  kDisableLaser = 0x02,
+  kEnableLaser = 0x04,
+  kExecuteList = 0x05,
+  kGetVersion = 0x07,  // the status poll
+  kGotoXY = 0x0D,
+  kWriteCorLine = 0x10,
+  kResetList = 0x12,
+  kWriteCorTable = 0x15,
+  kSetEndOfList = 0x19,
+  kStopExecute = 0x1F,
+  kWritePort = 0x21,
+};
+
+constexpr uint16_t kStatusBusy = 0x04;
+constexpr uint16_t kStatusReady = 0x20;
+constexpr size_t kCommandBytes = 12;
+constexpr size_t kReplyBytes = 8;
+constexpr size_t kPacketCommands = 256;
+constexpr size_t kPacketBytes = kPacketCommands * kCommandBytes;  // 3072
+
+using Command = std::array<uint16_t, 6>;  // opcode, p1..p5
+
+// The board's byte pipe: bulk OUT endpoint 0x02, bulk IN 0x88.
+class Transport {
+ public:
+  Transport() = default;
+  virtual ~Transport() = default;
+  Transport(const Transport&) = delete;
+  Transport& operator=(const Transport&) = delete;
+
+  // Errors: device_error naming the device and what failed (timeout, disconnect).
+  virtual Status Write(const uint8_t* data, size_t size) = 0;
+  virtual Status Read(uint8_t* data, size_t size) = 0;
+  virtual std::string Describe() const = 0;  // "usb 1-4 9588:9899", "simulated board"
+};
+
+// Which USB board to open: by VID/PID, and by bus and address to pick one of several.
+struct UsbSelector {
+  uint16_t vid = 0x9588;
+  uint16_t pid = 0x9899;
+  int bus = -1;      // -1: any
+  int address = -1;  // -1: any
+  int timeout_ms = 100;
+  int retries = 3;  // per transfer, on timeout
+};
+
+// Opens and claims interface 0 of the board. Errors: not_found (no such board: lists what USB
+// devices with that VID:PID exist), device_error (permission: names the udev rule in
+// docs/hardware.md; busy: another program holds it).
+Result<std::unique_ptr<Transport>> OpenUsb(const UsbSelector& selector);
+
+enum class Focus { kNone, kDaZWord };
+
+struct BoardOptions {
+  double lens_mm = 110.0;  // field size across the 65536 units
+  bool swap_xy = false;    // axis order and sign differ between boards and heads
+  bool flip_x = false;
+  bool flip_y = false;
+  Focus focus = Focus::kNone;
+  double z_units_per_mm = 0.0;       // focus: da_z_word: Z DA word units per mm of focus shift
+  double focus_range_mm = 0.0;       // +- focus travel of the shifter
+  uint16_t list_ports = 0x0001;      // port word at the start of a marking list
+  uint16_t pointer_port = 0x0100;    // the red pointer's output bit
+  double open_mo_delay_us = 8000.0;  // the fibre laser's master oscillator settles
+  double polygon_delay_us = 100.0;
+  int poll_ms = 2;  // status poll period while a list runs
+  double list_timeout_s = 3600.0;
+  int packets_before_start = 64;  // then the rest are streamed as the board reports READY
+
+  Status Validate() const;
+};
+
+// Board units of a galvo-frame point (mm): floor(0x8000 + x * 65536 / lens), with the
+// configured swap and flips. Errors: out_of_range outside the lens field.
+Result<std::array<uint16_t, 2>> ToUnits(double x_mm, double y_mm, const BoardOptions& options);
+// The inverse (the emulator's side).
+std::array<double, 2> FromUnits(uint16_t u, uint16_t v, const BoardOptions& options);
+
+// The list commands for `list`, starting from the head at `*position` (units; updated to where
+// the list ends) and Z word `*z_word` (updated). Errors: out_of_range (a point outside the
+// field or the focus range; z != 0 on a head without focus), invalid_argument (speeds, power,
+// rate).
+Result<std::vector<Command>> EncodeList(const GalvoList& list, const BoardOptions& options,
+                                        std::array<uint16_t, 2>* position, uint16_t* z_word);
+// 3072-byte packets, the last padded with end-of-list.
+std::vector<std::vector<uint8_t>> Packets(const std::vector<Command>& commands);
+// One 12-byte single command.
+std::vector<uint8_t> SingleCommand(uint16_t op, uint16_t p1 = 0, uint16_t p2 = 0, uint16_t p3 = 0,
+                                   uint16_t p4 = 0, uint16_t p5 = 0);
+Command DecodeCommand(const uint8_t* bytes);
+// One line per command: "listJumpTo           ba2e 45d1 0000 5248 0000".
+std::string FormatCommands(const std::vector<Command>& commands);
+
+// A correction table as the board takes it: 65 x 65 (dx, dy) offsets in units, x outer.
+struct BoardCorrection {
+  std::vector<std::array<int32_t, 2>> offsets;  // 4225
+};
+// WriteCorTable(1) and 4225 WriteCorLine commands (sign-magnitude words).
+Result<std::vector<std::vector<uint8_t>>> CorrectionUpload(const BoardCorrection& table);
+
+// A Scanner on an LMC board. Arm/Disarm enable and disable the laser output; a marking list is
+// streamed and polled until the board is done; control.abort sends StopExecute, disables the
+// laser and resets the list. The pointer sweeps with the pointer port on and the laser off.
+std::unique_ptr<Scanner> MakeScanner(std::unique_ptr<Transport> transport, BoardOptions options);
+
+}  // namespace insitu::hw::lmc

@@ -1,0 +1,43 @@
+// An LMC board emulated at the USB transport: it decodes the bytes the LMC backend sends
+// (single commands, 3072-byte list packets), answers with status replies as the board does,
+// and executes lists on the simulated scan head (sim::SimWorld), so a marking job runs end to
+// end through the real encoder and protocol. The board's emulated memory and the head's
+// geometry (lens, axes, focus shifter) come from `options`, as the installed board would have
+// them.
+#pragma once
+
+#include <memory>
+
+#include "insitu/hw/lmc.h"
+#include "insitu/sim/world.h"
+
+namespace insitu::hw::lmc {
+
+// What the emulated board received (for tests): counts and the last correction table.
+struct SimBoardLog {
+  int single_commands = 0;
+  int packets = 0;
+  int lists_executed = 0;
+  int stops = 0;
+  bool laser_enabled = false;
+  uint16_t ports = 0;
+  std::vector<std::array<int32_t, 2>> correction;  // as uploaded, signed
+};
+
+class SimBoard : public Transport {
+ public:
+  SimBoard(std::shared_ptr<sim::SimWorld> world, BoardOptions options);
+  ~SimBoard() override;
+
+  Status Write(const uint8_t* data, size_t size) override;
+  Status Read(uint8_t* data, size_t size) override;
+  std::string Describe() const override { return "simulated LMC board"; }
+
+  SimBoardLog log() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace insitu::hw::lmc

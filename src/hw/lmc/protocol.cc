@@ -1,0 +1,233 @@
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+
+#include "insitu/hw/lmc.h"
+
+namespace insitu::hw::lmc {
+namespace {
+
+constexpr double kUnits = 65536.0;
+
+void Put(std::vector<uint8_t>* out, uint16_t w) {
+  out->push_back(static_cast<uint8_t>(w & 0xFF));
+  out->push_back(static_cast<uint8_t>(w >> 8));
+}
+
+// |us| as a delay word, and the sign word the board takes after it (0x8000 when negative).
+Command Delay(uint16_t op, double us) {
+  const double magnitude = std::min(std::round(std::abs(us)), 65535.0);
+  return {op, static_cast<uint16_t>(magnitude), static_cast<uint16_t>(us < 0 ? 0x8000 : 0), 0, 0,
+          0};
+}
+
+uint16_t Distance(const std::array<uint16_t, 2>& a, const std::array<uint16_t, 2>& b) {
+  const double d = std::hypot(static_cast<double>(a[0]) - b[0], static_cast<double>(a[1]) - b[1]);
+  return static_cast<uint16_t>(std::min(std::round(d), 65535.0));
+}
+
+}  // namespace
+
+Status BoardOptions::Validate() const {
+  if (!(lens_mm > 1.0 && lens_mm < 2000.0)) return InvalidArgument("lens_mm must be in (1, 2000)");
+  if (focus == Focus::kDaZWord) {
+    if (!(z_units_per_mm > 0))
+      return InvalidArgument("z_units_per_mm must be > 0 with a focus shifter");
+    if (!(focus_range_mm > 0))
+      return InvalidArgument("focus_range_mm must be > 0 with a focus shifter");
+    if (focus_range_mm * z_units_per_mm > 32767.0) {
+      return InvalidArgument("focus_range_mm * z_units_per_mm exceeds the Z word's +-32767");
+    }
+  }
+  if (!(open_mo_delay_us >= 0 && open_mo_delay_us <= 655350)) {
+    return InvalidArgument("open_mo_delay_us must be in [0, 655350]");
+  }
+  if (!(polygon_delay_us >= 0 && polygon_delay_us <= 65535)) {
+    return InvalidArgument("polygon_delay_us must be in [0, 65535]");
+  }
+  if (poll_ms < 1 || poll_ms > 1000) return InvalidArgument("poll_ms must be in 1..1000");
+  if (!(list_timeout_s > 0)) return InvalidArgument("list_timeout_s must be > 0");
+  if (packets_before_start < 1) return InvalidArgument("packets_before_start must be >= 1");
+  return Status::Ok();
+}
+
+// Truncation (floor), not rounding: the reference list the encoder is checked against
+// (docs/hardware.md) truncates; it biases points by at most one unit (1.7 um on a 110 mm lens).
+Result<std::array<uint16_t, 2>> ToUnits(double x_mm, double y_mm, const BoardOptions& o) {
+  double a = o.flip_x ? -x_mm : x_mm;
+  double b = o.flip_y ? -y_mm : y_mm;
+  if (o.swap_xy) std::swap(a, b);
+  const double scale = kUnits / o.lens_mm;
+  const double u = std::floor(32768.0 + a * scale), v = std::floor(32768.0 + b * scale);
+  if (!(u >= 0 && u <= 65535 && v >= 0 && v <= 65535)) {
+    char text[160];
+    std::snprintf(text, sizeof text,
+                  "point (%.3f, %.3f) mm is outside the %.1f mm lens field of the board", x_mm,
+                  y_mm, o.lens_mm);
+    return OutOfRange(text);
+  }
+  return std::array<uint16_t, 2>{static_cast<uint16_t>(u), static_cast<uint16_t>(v)};
+}
+
+std::array<double, 2> FromUnits(uint16_t u, uint16_t v, const BoardOptions& o) {
+  const double scale = kUnits / o.lens_mm;
+  double a = (u - 32768.0) / scale, b = (v - 32768.0) / scale;
+  if (o.swap_xy) std::swap(a, b);
+  return {o.flip_x ? -a : a, o.flip_y ? -b : b};
+}
+
+Result<std::vector<Command>> EncodeList(const GalvoList& list, const BoardOptions& o,
+                                        std::array<uint16_t, 2>* position, uint16_t* z_word) {
+  INSITU_RETURN_IF_ERROR(o.Validate());
+  if (!(list.jump_speed_mm_per_s > 0 && list.mark_speed_mm_per_s > 0)) {
+    return InvalidArgument("list speeds must be > 0");
+  }
+  if (!(list.laser_power >= 0 && list.laser_power <= 1)) {
+    return InvalidArgument("laser power must be a fraction in [0, 1]");
+  }
+  if (!(list.laser_frequency_khz >= 0.31 && list.laser_frequency_khz <= 20000)) {
+    return InvalidArgument("pulse rate must be in [0.31, 20000] kHz (the Q-switch period word)");
+  }
+  const double per_ms = kUnits / o.lens_mm / 1000.0;  // units per ms at 1 mm/s
+  const auto speed = [&](double mm_per_s) {
+    // Truncated, as the reference list does; at least one unit per ms.
+    return static_cast<uint16_t>(std::clamp(std::floor(mm_per_s * per_ms), 1.0, 65535.0));
+  };
+  std::vector<Command> out;
+  out.push_back({kReadyMark, 0, 0, 0, 0, 0});
+  out.push_back(
+      {kDelayTime, static_cast<uint16_t>(std::round(o.open_mo_delay_us / 10.0)), 0, 0, 0, 0});
+  out.push_back({kWritePortList, o.list_ports, 0, 0, 0, 0});
+  out.push_back({kJumpSpeed, speed(list.jump_speed_mm_per_s), 0, 0, 0, 0});
+  out.push_back(
+      {kMarkCurrent, static_cast<uint16_t>(std::round(list.laser_power * 0xFFF)), 0, 0, 0, 0});
+  out.push_back({kQSwitchPeriod,
+                 static_cast<uint16_t>(std::round(20000.0 / list.laser_frequency_khz)), 0, 0, 0,
+                 0});
+  out.push_back({kMarkSpeed, speed(list.mark_speed_mm_per_s), 0, 0, 0, 0});
+  out.push_back(Delay(kLaserOnDelay, list.laser_on_delay_us));
+  out.push_back(Delay(kLaserOffDelay, list.laser_off_delay_us));
+  out.push_back(Delay(kPolygonDelay, o.polygon_delay_us));
+
+  const auto& entries = list.entries;
+  for (size_t i = 0; i < entries.size(); ++i) {
+    const GalvoListEntry& e = entries[i];
+    const Eigen::Vector3d& p = e.to_in_galvo;
+    INSITU_ASSIGN_OR_RETURN(const auto units, ToUnits(p.x(), p.y(), o));
+    if (o.focus == Focus::kNone) {
+      if (p.z() != 0.0) {
+        return OutOfRange("z = " + std::to_string(p.z()) +
+                          " mm, but this LMC head has no focus shifter (focus: none)");
+      }
+    } else {
+      if (std::abs(p.z()) > o.focus_range_mm) {
+        return OutOfRange("z = " + std::to_string(p.z()) + " mm is outside the focus range +-" +
+                          std::to_string(o.focus_range_mm) + " mm");
+      }
+      const auto z = static_cast<uint16_t>(std::floor(32768.0 + p.z() * o.z_units_per_mm));
+      if (z != *z_word) {
+        out.push_back({kSetDaZWord, z, 0, 0, 0, 0});
+        *z_word = z;
+      }
+    }
+    const bool mark = e.kind == GalvoListEntry::Kind::kMark;
+    out.push_back({mark ? kMarkTo : kJumpTo, units[0], units[1], 0, Distance(*position, units), 0});
+    *position = units;
+    if (!mark && list.jump_delay_us > 0) out.push_back(Delay(kJumpDelay, list.jump_delay_us));
+    const bool sequence_ends =
+        mark && (i + 1 == entries.size() || entries[i + 1].kind != GalvoListEntry::Kind::kMark);
+    if (sequence_ends && list.mark_delay_us > 0) {
+      out.push_back(
+          {kDelayTime,
+           static_cast<uint16_t>(std::min(std::round(list.mark_delay_us / 10.0), 65535.0)), 0, 0, 0,
+           0});
+    }
+  }
+  return out;
+}
+
+std::vector<std::vector<uint8_t>> Packets(const std::vector<Command>& commands) {
+  std::vector<std::vector<uint8_t>> packets;
+  for (size_t first = 0; first < commands.size(); first += kPacketCommands) {
+    std::vector<uint8_t> packet;
+    packet.reserve(kPacketBytes);
+    for (size_t k = 0; k < kPacketCommands; ++k) {
+      const Command c =
+          first + k < commands.size() ? commands[first + k] : Command{kEndOfList, 0, 0, 0, 0, 0};
+      for (uint16_t w : c) Put(&packet, w);
+    }
+    packets.push_back(std::move(packet));
+  }
+  return packets;
+}
+
+std::vector<uint8_t> SingleCommand(uint16_t op, uint16_t p1, uint16_t p2, uint16_t p3, uint16_t p4,
+                                   uint16_t p5) {
+  std::vector<uint8_t> out;
+  out.reserve(kCommandBytes);
+  for (uint16_t w : {op, p1, p2, p3, p4, p5}) Put(&out, w);
+  return out;
+}
+
+Command DecodeCommand(const uint8_t* b) {
+  Command c{};
+  for (size_t i = 0; i < c.size(); ++i)
+    c[i] = static_cast<uint16_t>(b[2 * i] | (b[2 * i + 1] << 8));
+  return c;
+}
+
+std::string FormatCommands(const std::vector<Command>& commands) {
+  static const std::map<uint16_t, const char*> kNames = {{kJumpTo, "listJumpTo"},
+                                                         {kEndOfList, "listEndOfList"},
+                                                         {kDelayTime, "listDelayTime"},
+                                                         {kMarkTo, "listMarkTo"},
+                                                         {kJumpSpeed, "listJumpSpeed"},
+                                                         {kLaserOnDelay, "listLaserOnDelay"},
+                                                         {kLaserOffDelay, "listLaserOffDelay"},
+                                                         {kMarkSpeed, "listMarkSpeed"},
+                                                         {kJumpDelay, "listJumpDelay"},
+                                                         {kPolygonDelay, "listPolygonDelay"},
+                                                         {kWritePortList, "listWritePort"},
+                                                         {kMarkCurrent, "listMarkCurrent"},
+                                                         {kQSwitchPeriod, "listQSwitchPeriod"},
+                                                         {kSetDaZWord, "listSetDaZWord"},
+                                                         {kReadyMark, "listReadyMark"}};
+  std::string out;
+  for (const Command& c : commands) {
+    const auto it = kNames.find(c[0]);
+    char line[96];
+    if (it != kNames.end()) {
+      std::snprintf(line, sizeof line, "%-20s %04x %04x %04x %04x %04x\n", it->second, c[1], c[2],
+                    c[3], c[4], c[5]);
+    } else {
+      std::snprintf(line, sizeof line, "op %04x               %04x %04x %04x %04x %04x\n", c[0],
+                    c[1], c[2], c[3], c[4], c[5]);
+    }
+    out += line;
+  }
+  return out;
+}
+
+Result<std::vector<std::vector<uint8_t>>> CorrectionUpload(const BoardCorrection& table) {
+  if (table.offsets.size() != 65 * 65) {
+    return InvalidArgument("a board correction table has 65 x 65 = 4225 nodes, not " +
+                           std::to_string(table.offsets.size()));
+  }
+  const auto word = [](int32_t v) -> Result<uint16_t> {
+    if (v <= -0x8000 || v >= 0x8000) {
+      return OutOfRange("correction offset " + std::to_string(v) + " units is beyond +-32767");
+    }
+    // Sign-magnitude: a negative offset is sent as |v| + 0x8000.
+    return static_cast<uint16_t>(v < 0 ? -v + 0x8000 : v);
+  };
+  std::vector<std::vector<uint8_t>> out{SingleCommand(kWriteCorTable, 1)};
+  for (size_t i = 0; i < table.offsets.size(); ++i) {
+    INSITU_ASSIGN_OR_RETURN(const uint16_t dx, word(table.offsets[i][0]));
+    INSITU_ASSIGN_OR_RETURN(const uint16_t dy, word(table.offsets[i][1]));
+    out.push_back(SingleCommand(kWriteCorLine, dx, dy, i == 0 ? 0 : 1));
+  }
+  return out;
+}
+
+}  // namespace insitu::hw::lmc

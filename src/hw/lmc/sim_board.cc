@@ -1,0 +1,252 @@
+#include <atomic>
+#include <deque>
+#include <mutex>
+#include <thread>
+
+#include "insitu/hw/lmc_sim_board.h"
+
+namespace insitu::hw::lmc {
+
+struct SimBoard::Impl {
+  std::shared_ptr<sim::SimWorld> world;
+  BoardOptions options;
+  double units_per_ms_per_mm_s = 0.0;  // speed words: units per ms at 1 mm/s
+
+  mutable std::mutex mutex;
+  std::deque<std::array<uint8_t, kReplyBytes>> replies;
+  std::vector<Command> buffer;  // received, not yet executing
+  bool list_open = false;       // ExecuteList since the last ResetList: later packets run on
+  std::thread runner;
+  std::atomic<bool> running{false};
+  std::atomic<bool> abort{false};
+  SimBoardLog log;
+  // The list parameters the board holds (they persist from list to list, as on the board).
+  sim::MarkingParams params;
+  double z_mm = 0.0;
+
+  void Reply(uint16_t status) {
+    std::array<uint8_t, kReplyBytes> r{};
+    r[6] = static_cast<uint8_t>(status & 0xFF);
+    r[7] = static_cast<uint8_t>(status >> 8);
+    replies.push_back(r);
+  }
+
+  void Join() {
+    if (runner.joinable()) runner.join();
+  }
+
+  // Starts the runner on what is buffered (under mutex).
+  void StartLocked() {
+    if (buffer.empty() || running) return;
+    if (runner.joinable()) runner.join();  // finished: running is false
+    std::vector<Command> commands;
+    commands.swap(buffer);
+    running = true;
+    abort = false;
+    ++log.lists_executed;
+    runner = std::thread([this, commands = std::move(commands)]() mutable {
+      for (;;) {
+        Execute(commands);
+        std::lock_guard<std::mutex> lock(mutex);
+        if (list_open && !buffer.empty() && !abort) {  // packets that streamed in meanwhile
+          commands.clear();
+          commands.swap(buffer);
+          continue;
+        }
+        running = false;
+        return;
+      }
+    });
+  }
+
+  double Mm(uint16_t speed_word) const { return speed_word / units_per_ms_per_mm_s; }
+
+  void Execute(const std::vector<Command>& commands) {
+    std::vector<sim::ListMove> moves;
+    bool marks = false;
+    uint16_t ports;
+    bool laser_enabled;
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      ports = log.ports;
+      laser_enabled = log.laser_enabled;
+    }
+    for (const Command& c : commands) {
+      switch (c[0]) {
+        case kReadyMark:
+        case kEndOfList:
+          break;
+        case kDelayTime:
+          if (moves.empty()) {
+            world->Advance(c[1] * 10e-6);  // before the first move: the oscillator settles
+          } else {
+            params.mark_delay_us = c[1] * 10.0;
+          }
+          break;
+        case kWritePortList:
+          ports = c[1];
+          break;
+        case kJumpSpeed:
+          params.jump_speed_mm_per_s = Mm(c[1]);
+          break;
+        case kMarkSpeed:
+          params.mark_speed_mm_per_s = Mm(c[1]);
+          break;
+        case kMarkCurrent:
+          params.power_fraction = c[1] / 4095.0;
+          break;
+        case kQSwitchPeriod:
+          if (c[1] > 0) params.pulse_frequency_khz = 20000.0 / c[1];
+          break;
+        case kLaserOnDelay:
+          params.laser_on_delay_us = c[1];
+          break;
+        case kLaserOffDelay:
+          params.laser_off_delay_us = c[1];
+          break;
+        case kJumpDelay:
+          params.jump_delay_us = c[1];
+          break;
+        case kPolygonDelay:
+          break;  // corners between marks: the simulated head has no corner model
+        case kSetDaZWord:
+          z_mm = options.z_units_per_mm > 0 ? (c[1] - 32768.0) / options.z_units_per_mm : 0.0;
+          break;
+        case kJumpTo:
+        case kMarkTo: {
+          const auto xy = FromUnits(c[1], c[2], options);
+          // With the laser output disabled a mark moves the mirrors and nothing fires.
+          const bool fire = c[0] == kMarkTo && laser_enabled;
+          marks |= fire;
+          moves.push_back({fire ? sim::ListMove::Kind::kMark : sim::ListMove::Kind::kJump,
+                           Eigen::Vector3d(xy[0], xy[1], z_mm)});
+          break;
+        }
+        default:
+          break;  // opcodes the simulated head has no use for
+      }
+    }
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      log.ports = ports;
+    }
+    if (moves.empty()) return;
+    if (!marks && (ports & options.pointer_port) && moves.size() >= 2) {
+      // A light list: the pointer sweeps between its first two points until stopped.
+      (void)world->StartPointerLine(moves[0].to_in_galvo, moves[1].to_in_galvo,
+                                    params.jump_speed_mm_per_s);
+      return;
+    }
+    (void)world->ExecuteMarkingList(moves, params, &abort);
+  }
+
+  void Handle(const Command& c) {
+    ++log.single_commands;
+    switch (c[0]) {
+      case kGetVersion:
+        break;
+      case kResetList:
+        if (!running) buffer.clear();
+        list_open = false;
+        break;
+      case kExecuteList:
+        list_open = true;
+        StartLocked();
+        break;
+      case kStopExecute: {
+        ++log.stops;
+        abort = true;
+        buffer.clear();
+        list_open = false;
+        world->StopPointer();
+        break;
+      }
+      case kEnableLaser:
+        log.laser_enabled = true;
+        break;
+      case kDisableLaser:
+        log.laser_enabled = false;
+        break;
+      case kWritePort:
+        log.ports = c[1];
+        if (!(c[1] & options.pointer_port)) world->StopPointer();
+        break;
+      case kGotoXY:
+        if (!running) {
+          const auto xy = FromUnits(c[1], c[2], options);
+          (void)world->MoveHead(Eigen::Vector3d(xy[0], xy[1], z_mm));
+        }
+        break;
+      case kWriteCorTable:
+        log.correction.clear();
+        break;
+      case kWriteCorLine: {
+        const auto value = [](uint16_t w) {
+          return w & 0x8000 ? -static_cast<int32_t>(w & 0x7FFF) : static_cast<int32_t>(w);
+        };
+        log.correction.push_back({value(c[1]), value(c[2])});
+        break;
+      }
+      default:
+        break;
+    }
+    Reply(static_cast<uint16_t>((running ? kStatusBusy : 0) | kStatusReady));
+  }
+};
+
+SimBoard::SimBoard(std::shared_ptr<sim::SimWorld> world, BoardOptions options)
+    : impl_(std::make_unique<Impl>()) {
+  impl_->world = std::move(world);
+  impl_->options = options;
+  impl_->units_per_ms_per_mm_s = 65536.0 / options.lens_mm / 1000.0;
+}
+
+SimBoard::~SimBoard() {
+  impl_->abort = true;
+  impl_->Join();
+}
+
+Status SimBoard::Write(const uint8_t* data, size_t size) {
+  std::unique_lock<std::mutex> lock(impl_->mutex);
+  if (size == kCommandBytes) {
+    const Command c = DecodeCommand(data);
+    if (c[0] == kStopExecute) {
+      // Stop waits for the head to come to rest (the runner sees the abort on its next tick).
+      impl_->abort = true;
+      lock.unlock();
+      impl_->Join();
+      lock.lock();
+    }
+    impl_->Handle(c);
+    return Status::Ok();
+  }
+  if (size == kPacketBytes) {
+    ++impl_->log.packets;
+    for (size_t k = 0; k < kPacketCommands; ++k) {
+      impl_->buffer.push_back(DecodeCommand(data + k * kCommandBytes));
+    }
+    if (impl_->list_open) impl_->StartLocked();
+    return Status::Ok();
+  }
+  return Status(StatusCode::kDeviceError,
+                "simulated LMC board: a transfer of " + std::to_string(size) +
+                    " bytes is neither a command (12) nor a list packet (3072)");
+}
+
+Status SimBoard::Read(uint8_t* data, size_t size) {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  if (size != kReplyBytes || impl_->replies.empty()) {
+    return Status(StatusCode::kDeviceError, "simulated LMC board: no reply pending (a read of " +
+                                                std::to_string(size) + " bytes without a command)");
+  }
+  std::copy(impl_->replies.front().begin(), impl_->replies.front().end(), data);
+  impl_->replies.pop_front();
+  return Status::Ok();
+}
+
+SimBoardLog SimBoard::log() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->log;
+}
+
+}  // namespace insitu::hw::lmc

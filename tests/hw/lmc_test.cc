@@ -1,0 +1,313 @@
+// The LMC backend against the protocol facts (docs/hardware.md): the reference list byte for
+// byte, single commands, packets, .cor files in both formats, the correction upload, and
+// marking through the board emulator on the simulated head compared with the same list run
+// on the head directly; abort stops the laser.
+#include "insitu/hw/lmc.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <random>
+#include <thread>
+
+#include "insitu/hw/lmc_cor.h"
+#include "insitu/hw/lmc_sim_board.h"
+#include "insitu/hw/sim_backend.h"
+#include "insitu/sim/world.h"
+
+namespace insitu::hw::lmc {
+namespace {
+
+// The reference list (docs/hardware.md, "LMC"): a 10 mm square with corners at 25 and 35 mm
+// from the centre of a 110 mm lens, marked at 15 mm/s, full current, 20 kHz, laser on and off
+// delays 100 us, polygon delay 100 us, 8 ms for the oscillator, 300 us after the marks.
+constexpr char kReference[] =
+    "listReadyMark        0000 0000 0000 0000 0000\n"
+    "listDelayTime        0320 0000 0000 0000 0000\n"
+    "listWritePort        0001 0000 0000 0000 0000\n"
+    "listJumpSpeed        04a7 0000 0000 0000 0000\n"
+    "listMarkCurrent      0fff 0000 0000 0000 0000\n"
+    "listQSwitchPeriod    03e8 0000 0000 0000 0000\n"
+    "listMarkSpeed        0008 0000 0000 0000 0000\n"
+    "listLaserOnDelay     0064 0000 0000 0000 0000\n"
+    "listLaserOffDelay    0064 0000 0000 0000 0000\n"
+    "listPolygonDelay     0064 0000 0000 0000 0000\n"
+    "listJumpTo           ba2e 45d1 0000 5248 0000\n"
+    "listMarkTo           ba2e 2e8b 0000 1746 0000\n"
+    "listMarkTo           d174 2e8b 0000 1746 0000\n"
+    "listMarkTo           d174 45d1 0000 1746 0000\n"
+    "listMarkTo           ba2e 45d1 0000 1746 0000\n"
+    "listDelayTime        001e 0000 0000 0000 0000\n";
+
+GalvoList ReferenceSquare() {
+  GalvoList l;
+  l.jump_speed_mm_per_s = 2000.0;
+  l.mark_speed_mm_per_s = 15.0;
+  l.laser_power = 1.0;
+  l.laser_frequency_khz = 20.0;
+  l.laser_on_delay_us = 100.0;
+  l.laser_off_delay_us = 100.0;
+  l.mark_delay_us = 300.0;
+  l.entries.push_back({GalvoListEntry::Kind::kJump, {25, -25, 0}});
+  for (const auto& p : {Eigen::Vector3d(25, -35, 0), Eigen::Vector3d(35, -35, 0),
+                        Eigen::Vector3d(35, -25, 0), Eigen::Vector3d(25, -25, 0)}) {
+    l.entries.push_back({GalvoListEntry::Kind::kMark, p});
+  }
+  return l;
+}
+
+TEST(Lmc, TheReferenceListByteForByte) {
+  BoardOptions o;  // 110 mm lens, the reference's defaults
+  std::array<uint16_t, 2> at{0x8000, 0x8000};
+  uint16_t z = 0x8000;
+  const auto commands = EncodeList(ReferenceSquare(), o, &at, &z);
+  ASSERT_TRUE(commands.ok()) << commands.status().ToString();
+  EXPECT_EQ(FormatCommands(*commands), kReference);
+  EXPECT_EQ(at[0], 0xba2e);
+  EXPECT_EQ(at[1], 0x45d1);
+
+  // On the wire: one packet, the words little-endian, padded with end-of-list.
+  const auto packets = Packets(*commands);
+  ASSERT_EQ(packets.size(), 1u);
+  ASSERT_EQ(packets[0].size(), 3072u);
+  const uint8_t jump[12] = {0x01, 0x80, 0x2e, 0xba, 0xd1, 0x45, 0x00, 0x00, 0x48, 0x52, 0, 0};
+  EXPECT_TRUE(std::equal(jump, jump + 12, packets[0].begin() + 10 * 12));
+  for (size_t k = commands->size(); k < 256; ++k) {
+    EXPECT_EQ(packets[0][12 * k], 0x02);
+    EXPECT_EQ(packets[0][12 * k + 1], 0x80);
+    for (int b = 2; b < 12; ++b) ASSERT_EQ(packets[0][12 * k + b], 0);
+  }
+}
+
+TEST(Lmc, SingleCommandsAndUnits) {
+  const auto goto_centre = SingleCommand(kGotoXY, 0x8000, 0x8000);
+  const std::vector<uint8_t> expected{0x0d, 0, 0x00, 0x80, 0x00, 0x80, 0, 0, 0, 0, 0, 0};
+  EXPECT_EQ(goto_centre, expected);
+  BoardOptions o;
+  EXPECT_EQ(ToUnits(60.0, 0.0, o).status().code(), StatusCode::kOutOfRange);  // lens 110
+  // Swap and flips move the axes as configured; FromUnits undoes ToUnits to a unit.
+  o.swap_xy = true;
+  o.flip_y = true;
+  const auto u = ToUnits(10.0, 20.0, o);
+  ASSERT_TRUE(u.ok());
+  EXPECT_LT((*u)[0], 0x8000);  // -20 mm on the board's first axis
+  EXPECT_GT((*u)[1], 0x8000);
+  const auto back = FromUnits((*u)[0], (*u)[1], o);
+  EXPECT_NEAR(back[0], 10.0, 110.0 / 65536);
+  EXPECT_NEAR(back[1], 20.0, 110.0 / 65536);
+  // A head without a focus shifter refuses z.
+  GalvoList l = ReferenceSquare();
+  l.entries[1].to_in_galvo.z() = 1.0;
+  std::array<uint16_t, 2> at{0x8000, 0x8000};
+  uint16_t z = 0;
+  EXPECT_EQ(EncodeList(l, BoardOptions{}, &at, &z).status().code(), StatusCode::kOutOfRange);
+}
+
+TEST(Lmc, CorFilesRoundTripInBothFormats) {
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> offset(-3000, 3000);
+  const std::filesystem::path dir = std::filesystem::temp_directory_path();
+  for (const CorFormat format : {CorFormat::kJcz2, CorFormat::kLmc1}) {
+    CorFile cor;
+    cor.format = format;
+    cor.scale = 65536.0 / 163.0;
+    for (int n = 0; n < 65 * 65; ++n) {
+      cor.offsets.push_back({static_cast<double>(offset(rng)), static_cast<double>(offset(rng))});
+    }
+    const std::string path =
+        (dir / (format == CorFormat::kJcz2 ? "insitu_test_jcz.cor" : "insitu_test_lmc1.cor"))
+            .string();
+    ASSERT_TRUE(WriteCor(path, cor).ok());
+    if (format == CorFormat::kJcz2) {
+      EXPECT_EQ(std::filesystem::file_size(path), 33840u);
+    }
+    const auto back = ReadCor(path);
+    ASSERT_TRUE(back.ok()) << back.status().ToString();
+    EXPECT_EQ(back->format, format);
+    EXPECT_DOUBLE_EQ(back->scale, cor.scale);
+    EXPECT_NEAR(back->lens_mm(), 163.0, 1e-9);
+    ASSERT_EQ(back->offsets.size(), cor.offsets.size());
+    for (size_t n = 0; n < cor.offsets.size(); ++n) ASSERT_EQ(back->offsets[n], cor.offsets[n]);
+  }
+  // Bad files are named, with what is wrong.
+  const std::string junk = (dir / "insitu_test_junk.cor").string();
+  std::FILE* f = std::fopen(junk.c_str(), "wb");
+  std::fputs("JCZ_COR_2_1 but far too short", f);
+  std::fclose(f);
+  const auto bad = ReadCor(junk);
+  EXPECT_EQ(bad.status().code(), StatusCode::kParseError);
+  EXPECT_NE(bad.status().message().find("33840"), std::string::npos) << bad.status().message();
+  EXPECT_EQ(ReadCor((dir / "insitu_no_such.cor").string()).status().code(), StatusCode::kNotFound);
+}
+
+// A field correction exported to .cor comes back through insitu's correction CSV unchanged (to
+// the unit rounding of the JCZ format).
+TEST(Lmc, CorrectionExportAndImport) {
+  const auto bulge = [](double x, double y) {
+    return Eigen::Vector2d(2e-6 * x * (x * x + y * y), 2e-6 * y * (x * x + y * y));
+  };
+  const CorFile cor = FromCorrection(bulge, 163.0, CorFormat::kJcz2);
+  const std::string path = (std::filesystem::temp_directory_path() / "insitu_bulge.cor").string();
+  ASSERT_TRUE(WriteCor(path, cor).ok());
+  const auto back = ReadCor(path);
+  ASSERT_TRUE(back.ok());
+  const std::string csv = ToCorrectionCsv(*back);
+  // Node (64, 64) is the field's corner: 81.5 mm on both axes.
+  const Eigen::Vector2d corner = back->NodeMm(64, 64);
+  EXPECT_NEAR(corner.x(), 81.5, 1e-9);
+  const auto& o = back->offsets[64 * 65 + 64];
+  const double unit_mm = 163.0 / 65536;
+  EXPECT_NEAR(o[0] / back->scale, bulge(81.5, 81.5).x(), 0.5 * unit_mm);
+  EXPECT_NE(csv.find("x_mm,y_mm,dx_mm,dy_mm"), std::string::npos);
+}
+
+TEST(Lmc, TheCorrectionUploadInSignMagnitude) {
+  BoardCorrection table;
+  for (int n = 0; n < 65 * 65; ++n) table.offsets.push_back({n % 7 - 3, -(n % 5)});
+  const auto upload = CorrectionUpload(table);
+  ASSERT_TRUE(upload.ok());
+  ASSERT_EQ(upload->size(), 1u + 4225u);
+  auto world = std::make_shared<sim::SimWorld>(sim::WorldOptions{});
+  SimBoard board(world, BoardOptions{});
+  for (const auto& bytes : *upload) {
+    ASSERT_TRUE(board.Write(bytes.data(), bytes.size()).ok());
+    uint8_t reply[8];
+    ASSERT_TRUE(board.Read(reply, 8).ok());
+  }
+  EXPECT_EQ(board.log().correction, table.offsets);
+  table.offsets[3] = {40000, 0};
+  EXPECT_EQ(CorrectionUpload(table).status().code(), StatusCode::kOutOfRange);
+}
+
+// The simulated head's field is +-70 mm: a 163 mm lens covers it (2.5 um per unit); the board
+// drives the head's dynamic focus through its Z word, 1 um per unit.
+BoardOptions SimHeadBoard() {
+  BoardOptions o;
+  o.lens_mm = 163.0;
+  o.focus = Focus::kDaZWord;
+  o.z_units_per_mm = 1000.0;
+  o.focus_range_mm = 25.0;
+  o.poll_ms = 1;
+  return o;
+}
+
+GalvoList Hatch(double z_mm) {
+  GalvoList l;
+  l.laser_on_delay_us = 100;
+  l.laser_off_delay_us = 200;
+  l.jump_delay_us = 300;
+  l.mark_delay_us = 250;
+  for (int k = 0; k < 21; ++k) {  // a 4 x 4 mm square hatched every 0.2 mm
+    const double y = -2.0 + 0.2 * k;
+    l.entries.push_back({GalvoListEntry::Kind::kJump, {-2.0, y, z_mm}});
+    l.entries.push_back({GalvoListEntry::Kind::kMark, {2.0, y, z_mm}});
+  }
+  return l;
+}
+
+TEST(Lmc, MarkingThroughTheBoardMatchesTheHeadItself) {
+  for (const double z : {0.0, 2.0}) {  // in focus on the plate, and 2 mm above it
+    sim::WorldOptions w;
+    w.part.kind = "none";
+    auto direct_world = std::make_shared<sim::SimWorld>(w);
+    auto board_world = std::make_shared<sim::SimWorld>(w);
+    Machine direct = MakeSimMachine(direct_world);
+    auto board = std::make_unique<SimBoard>(board_world, SimHeadBoard());
+    const SimBoard* log = board.get();
+    auto lmc = MakeScanner(std::move(board), SimHeadBoard());
+    EXPECT_EQ(lmc->ExecuteList(Hatch(z)).code(), StatusCode::kFailedPrecondition);  // not armed
+    ASSERT_TRUE(direct.scanner->Arm().ok());
+    ASSERT_TRUE(lmc->Arm().ok());
+    ASSERT_TRUE(direct.scanner->ExecuteList(Hatch(z)).ok());
+    const Status ran = lmc->ExecuteList(Hatch(z));
+    ASSERT_TRUE(ran.ok()) << ran.ToString();
+    ASSERT_TRUE(lmc->Disarm().ok());
+    EXPECT_FALSE(log->log().laser_enabled);
+    EXPECT_EQ(log->log().lists_executed, 1);
+
+    const auto& a = direct_world->mark_pulses();
+    const auto& b = board_world->mark_pulses();
+    ASSERT_GT(a.size(), 1000u);
+    // The same marks: speed words are whole units per ms (1000 mm/s runs at 999.85 mm/s) and
+    // points whole units (2.5 um), so the pulse counts differ by a few per thousand at most.
+    const double ratio = static_cast<double>(b.size()) / a.size();
+    EXPECT_NEAR(ratio, 1.0, 0.005) << a.size() << " vs " << b.size();
+    // Every pulse lands where the head itself puts it: the worst distance from a hatch line
+    // (where the mirrors' lag bends the line ends) is the direct run's to within the unit
+    // quantisation (2.5 um), at the asked focus.
+    const auto worst_offset = [](const std::vector<sim::MarkPulse>& pulses) {
+      double worst = 0.0;
+      for (const sim::MarkPulse& p : pulses) {
+        const double line_y = -2.0 + 0.2 * std::round((p.point_in_world.y() + 2.0) / 0.2);
+        worst = std::max(worst, std::abs(p.point_in_world.y() - line_y));
+      }
+      return worst;
+    };
+    for (const sim::MarkPulse& p : b) {
+      ASSERT_NEAR(p.defocus_mm, z, 0.01);
+      ASSERT_GT(p.point_in_world.x(), -2.05);
+      ASSERT_LT(p.point_in_world.x(), 2.05);
+    }
+    const double worst_board = worst_offset(b), worst_direct = worst_offset(a);
+    EXPECT_NEAR(worst_board, worst_direct, 0.0025);
+    std::printf(
+        "z = %.1f mm: %zu pulses through the board, %zu direct; worst line offset %.2f um "
+        "(direct %.2f um)\n",
+        z, b.size(), a.size(), worst_board * 1e3, worst_direct * 1e3);
+  }
+}
+
+TEST(Lmc, AbortStopsTheBoardAndTheLaser) {
+  sim::WorldOptions w;
+  w.part.kind = "none";
+  w.real_time_factor = 1.0;  // the board runs its list in real time
+  auto world = std::make_shared<sim::SimWorld>(w);
+  auto board = std::make_unique<SimBoard>(world, SimHeadBoard());
+  const SimBoard* log = board.get();
+  auto lmc = MakeScanner(std::move(board), SimHeadBoard());
+  GalvoList l = Hatch(0.0);
+  l.mark_speed_mm_per_s = 100.0;  // 84 mm of marks: 0.84 s
+  ASSERT_TRUE(lmc->Arm().ok());
+  std::atomic<bool> abort{false};
+  std::thread stopper([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    abort = true;
+  });
+  ListControl control;
+  control.abort = &abort;
+  const auto t0 = std::chrono::steady_clock::now();
+  const Status s = lmc->ExecuteList(l, control);
+  const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  stopper.join();
+  EXPECT_EQ(s.code(), StatusCode::kCancelled) << s.ToString();
+  EXPECT_LT(took, 0.6);  // aborted at 0.3 s, not run to its 0.84 s end
+  EXPECT_FALSE(lmc->armed());
+  EXPECT_FALSE(log->log().laser_enabled);
+  EXPECT_GE(log->log().stops, 1);
+  const sim::ListAbortTruth& a = world->last_list_abort();
+  ASSERT_TRUE(a.aborted);
+  double last = 0.0;
+  for (const auto& p : world->mark_pulses()) last = std::max(last, p.t_s);
+  EXPECT_LE(last, a.seen_at_s + 1e-12);
+}
+
+TEST(Lmc, NoBoardIsAClearError) {
+  UsbSelector s;
+  s.vid = 0x9588;
+  s.pid = 0x0001;  // no such board
+  const auto t = OpenUsb(s);
+  ASSERT_FALSE(t.ok());
+  // No USB bus in a container is a device error from libusb; a bus without the board, not found.
+  EXPECT_TRUE(t.status().code() == StatusCode::kNotFound ||
+              t.status().code() == StatusCode::kDeviceError);
+  const std::string& m = t.status().message();
+  EXPECT_TRUE(m.find("9588:0001") != std::string::npos || m.find("libusb") != std::string::npos)
+      << m;
+}
+
+}  // namespace
+}  // namespace insitu::hw::lmc
