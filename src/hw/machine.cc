@@ -1,8 +1,11 @@
 #include "insitu/hw/machine.h"
 
+#include <chrono>
 #include <map>
 #include <mutex>
+#include <thread>
 
+#include "insitu/hw/lmc_sim_board.h"
 #include "insitu/hw/sim_backend.h"
 
 namespace insitu::hw {
@@ -10,12 +13,81 @@ namespace {
 
 std::mutex g_mutex;
 
+class WallClock : public MachineClock {
+ public:
+  WallClock() : start_(std::chrono::steady_clock::now()) {}
+  double Now() const override {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  }
+  void SleepFor(double seconds) override {
+    if (seconds > 0) std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+  }
+
+ private:
+  std::chrono::steady_clock::time_point start_;
+};
+
+}  // namespace
+
+Status ReplaceDevices(const MachineConfig& config, std::shared_ptr<sim::SimWorld> world,
+                      Machine* m) {
+  bool real = false;
+  if (config.scanner == "lmc") {
+    const LmcDeviceConfig& l = config.lmc;
+    INSITU_RETURN_IF_ERROR(l.board.Validate().Prefixed("lmc.board"));
+    std::unique_ptr<lmc::Transport> transport;
+    if (l.transport == "sim_board") {
+      if (world == nullptr) {
+        return InvalidArgument("lmc.transport sim_board needs the sim backend (a simulated head)");
+      }
+      transport = std::make_unique<lmc::SimBoard>(world, l.board);
+    } else if (l.transport == "usb") {
+      INSITU_ASSIGN_OR_RETURN(transport, lmc::OpenUsb(l.usb));
+      real = true;
+    } else {
+      return InvalidArgument("lmc.transport '" + l.transport + "' is not usb or sim_board");
+    }
+    m->scanner = lmc::MakeScanner(std::move(transport), l.board);
+  } else if (!config.scanner.empty() && config.scanner != config.backend) {
+    return NotFound("scanner backend '" + config.scanner + "' does not exist (known: lmc)");
+  }
+  if (config.camera == "aravis") {
+    aravis::CameraOptions options = config.aravis.camera;
+    if (!config.aravis.simulate_on.empty()) {
+      if (world == nullptr) {
+        return InvalidArgument("aravis.simulate_on needs the sim backend (a simulated camera)");
+      }
+      INSITU_ASSIGN_OR_RETURN(std::shared_ptr<aravis::SimulatedGigECamera> served,
+                              aravis::SimulatedGigECamera::Start(world, config.aravis.simulate_on,
+                                                                 world->options().camera.serial));
+      served->SetLostPacketRatio(config.aravis.lost_packet_ratio);
+      m->peers.push_back(served);
+      options.device = config.aravis.simulate_on;
+      options.roi_width = world->options().camera.width_px;
+      options.roi_height = world->options().camera.height_px;
+    } else {
+      real = true;
+    }
+    INSITU_ASSIGN_OR_RETURN(m->camera, aravis::OpenCamera(options));
+  } else if (!config.camera.empty() && config.camera != config.backend) {
+    return NotFound("camera backend '" + config.camera + "' does not exist (known: aravis)");
+  }
+  // Real devices run on the wall clock: a settle time must really pass.
+  if (real) m->clock = std::make_unique<WallClock>();
+  return Status::Ok();
+}
+
+namespace {
+
 std::map<std::string, BackendFactory>& Registry() {
   static std::map<std::string, BackendFactory> registry = [] {
     std::map<std::string, BackendFactory> r;
     r["sim"] = [](const MachineConfig& config) -> Result<Machine> {
       INSITU_RETURN_IF_ERROR(config.world.Validate().Prefixed("world"));
-      return MakeSimMachine(std::make_shared<sim::SimWorld>(config.world));
+      auto world = std::make_shared<sim::SimWorld>(config.world);
+      Machine m = MakeSimMachine(world);
+      INSITU_RETURN_IF_ERROR(ReplaceDevices(config, world, &m));
+      return m;
     };
     return r;
   }();

@@ -287,11 +287,71 @@ void ReadStripeOptions(ConfigReader& r, vision::StripeOptions* o) {
 
 void ReadMachine(ConfigReader& root, const std::string& folder, MachineSpec* spec) {
   ConfigReader& m = root.Section("machine");
-  m.Read("backend", &spec->config.backend);
+  hw::MachineConfig& c = spec->config;
+  m.Read("backend", &c.backend);
   m.Require("calibration");
   std::string calibration;
   m.Read("calibration", &calibration);
   spec->calibration_path = ResolvePath(folder, calibration);
+  m.ReadEnum("camera", &c.camera, {"sim", "aravis"});
+  m.ReadEnum("scanner", &c.scanner, {"sim", "lmc"});
+  if (m.Has("aravis")) {
+    ConfigReader& a = m.Section("aravis");
+    hw::aravis::CameraOptions& o = c.aravis.camera;
+    a.Read("device", &o.device);
+    a.Read("bit_depth", &o.bit_depth);
+    a.Read("packet_size", &o.packet_size);
+    a.Read("buffers", &o.buffers);
+    a.Read("frame_timeout_ms", &o.frame_timeout_ms);
+    a.Read("socket_buffer_bytes", &o.socket_buffer_bytes);
+    a.Read("reconnect", &o.reconnect);
+    double roi[2] = {static_cast<double>(o.roi_width), static_cast<double>(o.roi_height)};
+    a.ReadArray("roi_size_px", roi, 2);
+    o.roi_width = static_cast<int>(roi[0]);
+    o.roi_height = static_cast<int>(roi[1]);
+    a.Read("simulate_on", &c.aravis.simulate_on);
+    a.Read("lost_packet_ratio", &c.aravis.lost_packet_ratio);
+    if (a.ok()) a.FailFromValidate(o.Validate());
+    if (a.ok() && !(c.aravis.lost_packet_ratio >= 0 && c.aravis.lost_packet_ratio <= 1)) {
+      a.Fail("lost_packet_ratio", "must be in [0, 1]");
+    }
+  }
+  if (m.Has("lmc")) {
+    ConfigReader& l = m.Section("lmc");
+    hw::LmcDeviceConfig& d = c.lmc;
+    l.ReadEnum("transport", &d.transport, {"usb", "sim_board"});
+    int vid = d.usb.vid, pid = d.usb.pid;
+    l.Read("vid", &vid);
+    l.Read("pid", &pid);
+    if (vid < 0 || vid > 0xFFFF) l.Fail("vid", "must be a 16-bit USB vendor id");
+    if (pid < 0 || pid > 0xFFFF) l.Fail("pid", "must be a 16-bit USB product id");
+    d.usb.vid = static_cast<uint16_t>(vid);
+    d.usb.pid = static_cast<uint16_t>(pid);
+    l.Read("bus", &d.usb.bus);
+    l.Read("address", &d.usb.address);
+    l.Read("timeout_ms", &d.usb.timeout_ms);
+    l.Read("retries", &d.usb.retries);
+    hw::lmc::BoardOptions& b = d.board;
+    l.Read("lens_mm", &b.lens_mm);
+    l.Read("swap_xy", &b.swap_xy);
+    l.Read("flip_x", &b.flip_x);
+    l.Read("flip_y", &b.flip_y);
+    std::string focus = b.focus == hw::lmc::Focus::kNone ? "none" : "da_z_word";
+    l.ReadEnum("focus", &focus, {"none", "da_z_word"});
+    b.focus = focus == "none" ? hw::lmc::Focus::kNone : hw::lmc::Focus::kDaZWord;
+    l.Read("z_units_per_mm", &b.z_units_per_mm);
+    l.Read("focus_range_mm", &b.focus_range_mm);
+    int ports = b.list_ports, pointer = b.pointer_port;
+    l.Read("list_ports", &ports);
+    l.Read("pointer_port", &pointer);
+    b.list_ports = static_cast<uint16_t>(ports);
+    b.pointer_port = static_cast<uint16_t>(pointer);
+    l.Read("open_mo_delay_us", &b.open_mo_delay_us);
+    l.Read("polygon_delay_us", &b.polygon_delay_us);
+    l.Read("poll_ms", &b.poll_ms);
+    l.Read("list_timeout_s", &b.list_timeout_s);
+    if (l.ok()) l.FailFromValidate(b.Validate());
+  }
 }
 
 void ReadJobHeader(ConfigReader& r, const LoadedJob& job, MachineSpec* machine) {

@@ -1,0 +1,18 @@
+// CameraOptions without Aravis: job files are checked where Aravis is not linked (fuzzing).
+#include "insitu/hw/aravis.h"
+
+namespace insitu::hw::aravis {
+
+Status CameraOptions::Validate() const {
+  if (bit_depth != 8 && bit_depth != 16) return InvalidArgument("bit_depth must be 8 or 16");
+  if (packet_size < 576 || packet_size > 16000) {
+    return InvalidArgument("packet_size must be in 576..16000 bytes");
+  }
+  if (buffers < 2 || buffers > 64) return InvalidArgument("buffers must be in 2..64");
+  if (!(frame_timeout_ms > 0)) return InvalidArgument("frame_timeout_ms must be > 0");
+  if (socket_buffer_bytes < 65536) return InvalidArgument("socket_buffer_bytes must be >= 65536");
+  if (roi_width < 0 || roi_height < 0) return InvalidArgument("roi sizes must be >= 0");
+  return Status::Ok();
+}
+
+}  // namespace insitu::hw::aravis
