@@ -1,8 +1,11 @@
 // insitu: the operator's command line. Runs job files against the machine they name.
 //   insitu run JOB.yaml [--out DIR] [--set dotted.key=value ...]
 //   insitu diagnose DATA.csv [--out DIR]
+//   insitu cor import FILE.cor --out TABLE.csv     an EzCad correction as insitu's field table
+//   insitu cor export TABLE.csv --lens MM [--format jcz|lmc1] --out FILE.cor
 // Exit codes: 0 success, 2 bad input (job file, --set, calibration file), 1 failure while
 // running (the report says what), 130 interrupted.
+#include <CLI/CLI.hpp>
 #include <atomic>
 #include <csignal>
 #include <cstdio>
@@ -10,12 +13,13 @@
 #include <string>
 #include <vector>
 
-#include <CLI/CLI.hpp>
-
+#include "insitu/core/file.h"
 #include "insitu/core/log.h"
+#include "insitu/hw/lmc_cor.h"
 #include "insitu/job/diagnose_job.h"
 #include "insitu/job/job_file.h"
 #include "insitu/job/runner.h"
+#include "insitu/pattern/correction_table.h"
 
 #ifndef INSITU_VERSION
 #define INSITU_VERSION "0.0.0"
@@ -50,9 +54,8 @@ int Run(const std::string& job_path, const std::string& out_dir,
     return ExitCodeFor(job.status());
   }
   insitu::job::RunOptions options;
-  options.out_dir = out_dir.empty()
-                        ? "insitu-out/" + std::filesystem::path(job_path).stem().string()
-                        : out_dir;
+  options.out_dir =
+      out_dir.empty() ? "insitu-out/" + std::filesystem::path(job_path).stem().string() : out_dir;
   options.cancel = &g_cancel;
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
@@ -71,8 +74,9 @@ int Run(const std::string& job_path, const std::string& out_dir,
 }
 
 int Diagnose(const std::string& csv, const std::string& out_dir) {
-  const std::string out =
-      out_dir.empty() ? "insitu-out/diagnose-" + std::filesystem::path(csv).stem().string() : out_dir;
+  const std::string out = out_dir.empty()
+                              ? "insitu-out/diagnose-" + std::filesystem::path(csv).stem().string()
+                              : out_dir;
   auto d = insitu::job::RunDiagnose(csv, out);
   if (!d.ok()) {
     std::fprintf(stderr, "insitu: %s\n", d.status().message().c_str());
@@ -82,6 +86,44 @@ int Diagnose(const std::string& csv, const std::string& out_dir) {
   const std::filesystem::path dir(out);
   std::printf("report: %s\nresiduals: %s\nextension: %s\n", (dir / "report.json").c_str(),
               (dir / "residuals.png").c_str(), (dir / "extension.yaml").c_str());
+  return 0;
+}
+
+// An LMC board's .cor file as insitu's field correction table (head.correction), and back.
+int CorImport(const std::string& cor_path, const std::string& out) {
+  auto cor = insitu::hw::lmc::ReadCor(cor_path);
+  if (!cor.ok()) {
+    std::fprintf(stderr, "insitu: %s\n", cor.status().message().c_str());
+    return ExitCodeFor(cor.status());
+  }
+  const insitu::Status saved =
+      insitu::WriteFileAtomically(out, insitu::hw::lmc::ToCorrectionCsv(*cor));
+  if (!saved.ok()) {
+    std::fprintf(stderr, "insitu: %s\n", saved.message().c_str());
+    return 1;
+  }
+  std::printf("%s: 65 x 65 nodes, lens %.2f mm -> %s\n", cor_path.c_str(), cor->lens_mm(),
+              out.c_str());
+  return 0;
+}
+
+int CorExport(const std::string& table_path, double lens_mm, const std::string& format,
+              const std::string& out) {
+  auto table = insitu::pattern::CorrectionTable::Load(table_path);
+  if (!table.ok()) {
+    std::fprintf(stderr, "insitu: %s\n", table.status().message().c_str());
+    return ExitCodeFor(table.status());
+  }
+  const auto cor = insitu::hw::lmc::FromCorrection(
+      [&](double x, double y) { return table->OffsetAt(x, y); }, lens_mm,
+      format == "lmc1" ? insitu::hw::lmc::CorFormat::kLmc1 : insitu::hw::lmc::CorFormat::kJcz2);
+  const insitu::Status saved = insitu::hw::lmc::WriteCor(out, cor);
+  if (!saved.ok()) {
+    std::fprintf(stderr, "insitu: %s\n", saved.message().c_str());
+    return ExitCodeFor(saved);
+  }
+  std::printf("%s (%d x %d nodes) -> %s, %s format, lens %.2f mm\n", table_path.c_str(),
+              table->nodes_x(), table->nodes_y(), out.c_str(), format.c_str(), lens_mm);
   return 0;
 }
 
@@ -107,9 +149,27 @@ int main(int argc, char** argv) {
   CLI::App* diagnose = app.add_subcommand(
       "diagnose", "what the galvo model gets wrong in measured field data (CSV), and why");
   std::string csv_path, diag_out;
-  diagnose->add_option("data", csv_path, "field data CSV (x_cmd_mm, y_cmd_mm, x_meas_mm, y_meas_mm)")
+  diagnose
+      ->add_option("data", csv_path, "field data CSV (x_cmd_mm, y_cmd_mm, x_meas_mm, y_meas_mm)")
       ->required();
   diagnose->add_option("--out", diag_out, "output folder (default insitu-out/diagnose-<name>)");
+
+  CLI::App* cor = app.add_subcommand("cor", "EzCad .cor correction files of LMC galvo boards");
+  cor->require_subcommand(1);
+  CLI::App* cor_import = cor->add_subcommand("import", "a .cor file as insitu's field table (CSV)");
+  std::string cor_in, cor_out;
+  cor_import->add_option("file", cor_in, ".cor file (JCZ_COR_2_1 or LMC1COR_1.0)")->required();
+  cor_import->add_option("--out", cor_out, "field correction CSV to write")->required();
+  CLI::App* cor_export = cor->add_subcommand("export", "insitu's field table (CSV) as a .cor file");
+  std::string table_in, cor_file, cor_format = "jcz";
+  double lens_mm = 0.0;
+  cor_export->add_option("table", table_in, "field correction CSV (head.correction)")->required();
+  cor_export->add_option("--lens", lens_mm, "the board's lens field, mm")
+      ->required()
+      ->check(CLI::Range(1.0, 2000.0));
+  cor_export->add_option("--format", cor_format, "jcz (JCZ_COR_2_1) or lmc1 (LMC1COR_1.0)")
+      ->check(CLI::IsMember({"jcz", "lmc1"}));
+  cor_export->add_option("--out", cor_file, ".cor file to write")->required();
 
   try {
     app.parse(argc, argv);
@@ -119,5 +179,7 @@ int main(int argc, char** argv) {
   insitu::SetLogLevel(log_level);
   if (run->parsed()) return Run(job_path, out_dir, sets);
   if (diagnose->parsed()) return Diagnose(csv_path, diag_out);
+  if (cor_import->parsed()) return CorImport(cor_in, cor_out);
+  if (cor_export->parsed()) return CorExport(table_in, lens_mm, cor_format, cor_file);
   return 2;
 }

@@ -1,5 +1,7 @@
 // The operator's command line: bad input gets one clear line naming the file, key or line and
 // a non-zero exit; nothing is written for a job that never started.
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -169,6 +171,47 @@ TEST(Cli, DiagnoseTheMeasuredFieldAndRefuseBadData) {
   EXPECT_NE(r.err.find("bad_field.csv:3"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("x_meas_mm"), std::string::npos) << r.err;
   EXPECT_EQ(Lines(r.err), 1) << r.err;
+}
+
+}  // namespace
+
+namespace {
+
+// An LMC board's correction in and out: insitu's table exported as a .cor file reads back as
+// the same field (to the JCZ format's whole units, 1.7 um on a 110 mm lens); a file that is
+// not a .cor is named.
+TEST(Cli, CorFilesExportAndImport) {
+  const fs::path dir = fs::temp_directory_path() / "insitu_cli_cor";
+  fs::create_directories(dir);
+  const std::string table =
+      WriteJob("insitu_cli_cor_table.csv",
+               "x_mm,y_mm,dx_mm,dy_mm\n-50,-50,0.01,-0.02\n50,-50,0.03,0.0\n-50,50,0,0\n"
+               "50,50,-0.01,0.02\n");
+  const std::string cor = (dir / "field.cor").string();
+  const std::string back = (dir / "field.csv").string();
+  ASSERT_EQ(Insitu("cor export " + table + " --lens 110 --out " + cor).exit_code, 0);
+  EXPECT_EQ(fs::file_size(cor), 33840u);
+  ASSERT_EQ(Insitu("cor import " + cor + " --out " + back).exit_code, 0);
+  std::ifstream f(back);
+  std::string line;
+  int nodes = 0;
+  double worst = 0.0;
+  while (std::getline(f, line)) {
+    double x, y, dx, dy;
+    if (std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf", &x, &y, &dx, &dy) != 4) continue;
+    ++nodes;
+    if (x < -50 || x > 50 || y < -50 || y > 50) continue;  // beyond the table: its edge
+    // The table's own bilinear offset at the node.
+    const double u = (x + 50) / 100, v = (y + 50) / 100;
+    const double ex = (1 - u) * (1 - v) * 0.01 + u * (1 - v) * 0.03 + u * v * -0.01;
+    const double ey = (1 - u) * (1 - v) * -0.02 + u * v * 0.02;
+    worst = std::max({worst, std::abs(dx - ex), std::abs(dy - ey)});
+  }
+  EXPECT_EQ(nodes, 65 * 65);
+  EXPECT_LT(worst, 0.5 * 110.0 / 65536 + 1e-9);
+  const CliRun bad = Insitu("cor import " + table + " --out " + back);
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("not a .cor file"), std::string::npos) << bad.err;
 }
 
 }  // namespace

@@ -46,7 +46,7 @@ struct SimBoard::Impl {
     ++log.lists_executed;
     runner = std::thread([this, commands = std::move(commands)]() mutable {
       for (;;) {
-        Execute(commands);
+        Execute(commands, /*locked=*/false);
         std::lock_guard<std::mutex> lock(mutex);
         if (list_open && !buffer.empty() && !abort) {  // packets that streamed in meanwhile
           commands.clear();
@@ -59,18 +59,28 @@ struct SimBoard::Impl {
     });
   }
 
+  // A list that marks nothing and turns the pointer port on.
+  bool IsLightList(const std::vector<Command>& commands) const {
+    bool pointer = false;
+    for (const Command& c : commands) {
+      if (c[0] == kMarkTo) return false;
+      if (c[0] == kWritePortList) pointer = (c[1] & options.pointer_port) != 0;
+    }
+    return pointer;
+  }
+
   double Mm(uint16_t speed_word) const { return speed_word / units_per_ms_per_mm_s; }
 
-  void Execute(const std::vector<Command>& commands) {
+  // Runs a list on the head. Called with the mutex held (light lists) or not (the runner):
+  // it touches the shared state only through `shared`.
+  void Execute(const std::vector<Command>& commands, bool locked = true) {
+    std::unique_lock<std::mutex> shared(mutex, std::defer_lock);
+    if (!locked) shared.lock();
+    uint16_t ports = log.ports;
+    const bool laser_enabled = log.laser_enabled;
+    if (!locked) shared.unlock();
     std::vector<sim::ListMove> moves;
     bool marks = false;
-    uint16_t ports;
-    bool laser_enabled;
-    {
-      std::lock_guard<std::mutex> lock(mutex);
-      ports = log.ports;
-      laser_enabled = log.laser_enabled;
-    }
     for (const Command& c : commands) {
       switch (c[0]) {
         case kReadyMark:
@@ -126,10 +136,9 @@ struct SimBoard::Impl {
           break;  // opcodes the simulated head has no use for
       }
     }
-    {
-      std::lock_guard<std::mutex> lock(mutex);
-      log.ports = ports;
-    }
+    if (!locked) shared.lock();
+    log.ports = ports;
+    if (!locked) shared.unlock();
     if (moves.empty()) return;
     if (!marks && (ports & options.pointer_port) && moves.size() >= 2) {
       // A light list: the pointer sweeps between its first two points until stopped.
@@ -151,7 +160,16 @@ struct SimBoard::Impl {
         break;
       case kExecuteList:
         list_open = true;
-        StartLocked();
+        if (IsLightList(buffer)) {
+          // The pointer starts sweeping within microseconds of the command, long before any
+          // camera exposure: set it up before the command returns.
+          std::vector<Command> commands;
+          commands.swap(buffer);
+          ++log.lists_executed;
+          Execute(commands);
+        } else {
+          StartLocked();
+        }
         break;
       case kStopExecute: {
         ++log.stops;
