@@ -20,6 +20,7 @@
 #include "insitu/core/log.h"
 #include "insitu/daemon/server.h"
 #include "insitu/hw/machine.h"
+#include "insitu/job/job_file.h"
 
 #ifndef INSITU_VERSION
 #define INSITU_VERSION "0.0.0"
@@ -30,7 +31,38 @@ namespace {
 struct DaemonConfig {
   insitu::daemon::ServerOptions server;
   std::string log_level = "info";
+  insitu::hw::MachineConfig machine;  // the machine: section, read as a job's
 };
+
+// A YAML value as --set text: scalars as they are (quoted when YAML would read them
+// otherwise), sequences as a flow list.
+std::string SetText(const insitu::ConfigNode& node) {
+  if (node.IsSequence()) {
+    std::string out = "[";
+    for (size_t i = 0; i < node.size(); ++i) {
+      out += (i ? ", " : "") + SetText(node.At(i));
+    }
+    return out + "]";
+  }
+  const std::string v = node.AsString().ok() ? *node.AsString() : "";
+  if (v.empty() || v.find_first_of(":#[]{},&*!|>'\"%@`") != std::string::npos ||
+      v.front() == ' ' || v.back() == ' ') {
+    std::string quoted = "\"";
+    for (char ch : v) quoted += ch == '"' || ch == '\\' ? std::string("\\") + ch : std::string(1, ch);
+    return quoted + "\"";
+  }
+  return v;
+}
+
+// Every entry of a map as "prefix.key=value" (nested maps as dotted keys).
+void Flatten(const insitu::ConfigNode& node, const std::string& prefix,
+             std::vector<std::string>* out) {
+  if (node.IsMap()) {
+    for (const std::string& key : node.Keys()) Flatten(node.Child(key), prefix + "." + key, out);
+    return;
+  }
+  out->push_back(prefix + "=" + SetText(node));
+}
 
 // A secret given inline or as a file of one line (never both); never logged.
 insitu::Status ReadSecret(const std::string& path, const std::string& key,
@@ -76,11 +108,18 @@ insitu::Result<DaemonConfig> ReadConfig(const std::string& path) {
   r.Read("admin_token_file", &admin_token_file);
   r.Read("results_dir", &c.server.results_dir);
   r.Read("jobs_dir", &c.server.jobs_dir);
-  if (r.Has("machine")) {
-    insitu::ConfigReader& m = r.Section("machine");
-    m.Require("backend");
-    m.ReadEnum("backend", &c.server.backend, insitu::hw::BackendNames());
-    m.Read("calibration", &c.server.calibration);
+  insitu::job::MachineSpec machine;
+  const bool has_machine = r.Has("machine");
+  const std::string folder = std::filesystem::absolute(path).parent_path().string();
+  if (has_machine) {
+    // The same keys and checks as a job's machine: section.
+    insitu::job::ReadMachine(r, folder, &machine);
+    const auto names = insitu::hw::BackendNames();
+    if (r.ok() && std::find(names.begin(), names.end(), machine.config.backend) == names.end()) {
+      std::string known;
+      for (const std::string& n : names) known += (known.empty() ? "" : ", ") + n;
+      r.Fail("machine", "backend '" + machine.config.backend + "' is not in this build (" + known + ")");
+    }
   }
   r.Read("queue", &c.server.queue);
   r.Read("max_queued", &c.server.max_queued);
@@ -95,13 +134,22 @@ insitu::Result<DaemonConfig> ReadConfig(const std::string& path) {
   INSITU_RETURN_IF_ERROR(ReadSecret(path, "token", token_file, &c.server.token));
   INSITU_RETURN_IF_ERROR(
       ReadSecret(path, "admin_token", admin_token_file, &c.server.admin_token));
-  if (!c.server.calibration.empty()) {
+  if (has_machine) {
     // Checked now: a daemon that would fail every job on its calibration does not start.
-    c.server.calibration = std::filesystem::absolute(c.server.calibration).string();
-    const auto calibration = insitu::calib::LoadCalibration(c.server.calibration);
+    const auto calibration = insitu::calib::LoadCalibration(machine.calibration_path);
     if (!calibration.ok()) {
       return calibration.status().Prefixed(path + ": machine.calibration");
     }
+    Flatten(root.Child("machine"), "machine", &c.server.machine_sets);
+    for (std::string& s : c.server.machine_sets) {
+      // Files named relative to this config resolve from its folder, as the jobs' do theirs.
+      if (s.rfind("machine.calibration=", 0) == 0) {
+        s = "machine.calibration=" + machine.calibration_path;
+      } else if (s.rfind("machine.lmc.correction=", 0) == 0) {
+        s = "machine.lmc.correction=" + machine.config.lmc.correction_file;
+      }
+    }
+    c.machine = machine.config;
   }
   INSITU_RETURN_IF_ERROR(c.server.Validate().Prefixed(path));
   return c;
@@ -125,6 +173,25 @@ int main(int argc, char** argv) {
     return 2;
   }
   insitu::SetLogLevel(config->log_level);
+  {
+    // Real devices the machine names are opened once now: a cell whose camera or board cannot
+    // be opened does not start serving (devices served by the simulator come up per job).
+    const insitu::hw::MachineConfig& m = config->machine;
+    const bool real_camera = m.camera == "aravis" && m.aravis.simulate_on.empty();
+    const bool real_board = m.scanner == "lmc" && m.lmc.transport == "usb";
+    if (real_camera || real_board) {
+      insitu::hw::MachineConfig probe = m;
+      if (!real_camera) probe.camera.clear();
+      if (!real_board) probe.scanner.clear();
+      insitu::hw::Machine devices;
+      const insitu::Status opened = insitu::hw::ReplaceDevices(probe, nullptr, &devices);
+      if (!opened.ok()) {
+        std::fprintf(stderr, "insitud: %s: machine: %s\n", config_path.c_str(),
+                     opened.message().c_str());
+        return 1;
+      }
+    }
+  }
   // SIGTERM and SIGINT are blocked in every thread (the server's inherit the mask) and taken
   // by one thread with sigwait: no work in a signal handler.
   sigset_t stop_signals;

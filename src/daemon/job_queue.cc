@@ -89,9 +89,9 @@ nlohmann::json JobQueue::Snapshot() const {
 }
 
 void JobQueue::Stop() {
+  std::lock_guard<std::mutex> stop(stop_mutex_);  // two stoppers: one joins, one waits
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (stopping_ && !worker_.joinable()) return;
     stopping_ = true;
     cancel_ = true;  // a running job stops at its next check; its state is saved
     wake_.notify_all();

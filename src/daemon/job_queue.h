@@ -77,6 +77,7 @@ class JobQueue {
   EmitFn emit_;
 
   mutable std::mutex mutex_;
+  std::mutex stop_mutex_;
   std::condition_variable wake_;
   std::deque<Entry> queue_;
   bool busy_ = false;  // a job is running (or about to, on the worker)

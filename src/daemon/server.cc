@@ -58,6 +58,7 @@ struct Server::Impl {
   ServerOptions options;
   asio::io_context io;
   asio::ip::tcp::acceptor acceptor;
+  asio::steady_timer accept_retry{io};
   std::thread thread;
   std::set<std::shared_ptr<Session>> sessions;  // touched on the io thread only
   std::atomic<int> clients{0};
@@ -73,7 +74,7 @@ struct Server::Impl {
   std::mutex shutdown_mutex;
   std::condition_variable shutdown_cv;
   bool shutdown = false;
-  bool running = false;
+  std::atomic<bool> running{false};
   std::shared_ptr<spdlog::logger> log = Logger("daemon");
 
   void Accept();
@@ -87,6 +88,9 @@ struct Server::Impl {
 
 class Server::Impl::Session : public std::enable_shared_from_this<Session> {
  public:
+  // Replies and events waiting for a client that does not read: beyond, it is closed.
+  static constexpr size_t kMaxQueuedLines = 1000;
+
   Session(Impl* server, asio::ip::tcp::socket socket)
       : server_(server),
         socket_(std::move(socket)),
@@ -103,6 +107,13 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
   }
 
   void Send(const std::string& line) {
+    if (closed_) return;
+    if (out_.size() >= kMaxQueuedLines) {
+      // The client has stopped reading: its lines would pile up without end.
+      server_->log->warn("closing {}: {} lines unread", peer_, out_.size());
+      Close();
+      return;
+    }
     const bool idle = out_.empty();
     out_.push_back(line);
     if (idle) WriteNext();
@@ -135,6 +146,10 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
       if (ec) return;  // re-armed or cancelled
       self->server_->log->info("closing {}: idle for {} s", self->peer_,
                                self->server_->options.idle_timeout_s);
+      if (!self->out_.empty()) {
+        self->Close();  // not reading either: a last line would never be taken
+        return;
+      }
       self->SendAndClose(ReplyError(nullptr, "idle_timeout", "no complete line for too long"));
     });
   }
@@ -272,8 +287,13 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
 void Server::Impl::Accept() {
   acceptor.async_accept([this](const asio::error_code& ec, asio::ip::tcp::socket socket) {
     if (ec) {
-      if (ec != asio::error::operation_aborted) log->warn("accept: {}", ec.message());
-      if (acceptor.is_open()) Accept();
+      if (ec == asio::error::operation_aborted || !acceptor.is_open()) return;
+      // Out of file descriptors and the like: try again shortly, not in a tight loop.
+      log->warn("accept: {}; retrying in 100 ms", ec.message());
+      accept_retry.expires_after(std::chrono::milliseconds(100));
+      accept_retry.async_wait([this](const asio::error_code& e) {
+        if (!e && acceptor.is_open()) Accept();
+      });
       return;
     }
     auto session = std::make_shared<Session>(this, std::move(socket));
@@ -313,8 +333,7 @@ std::string Server::Impl::Run(const Request& r) {
     }
   }
   // The daemon's machine wins over the job's and the client's: it owns the cell.
-  if (!options.backend.empty()) sets.push_back("machine.backend=" + options.backend);
-  if (!options.calibration.empty()) sets.push_back("machine.calibration=" + options.calibration);
+  sets.insert(sets.end(), options.machine_sets.begin(), options.machine_sets.end());
   const nlohmann::json& spec = r.body["job"];
   Result<job::LoadedJob> loaded =
       spec.is_string()
@@ -425,12 +444,12 @@ Status Server::Start() {
 int Server::port() const { return impl_->bound_port; }
 
 void Server::Stop() {
-  if (!impl_->running) return;
-  impl_->running = false;
+  if (!impl_->running.exchange(false)) return;  // the signal thread and main may both stop
   if (impl_->jobs) impl_->jobs->Stop();  // a running job stops at its next check, state saved
   asio::post(impl_->io, [impl = impl_.get()] {
     asio::error_code ec;
     impl->acceptor.close(ec);
+    impl->accept_retry.cancel();
     for (const auto& s : std::vector<std::shared_ptr<Impl::Session>>(impl->sessions.begin(),
                                                                      impl->sessions.end())) {
       s->Close();

@@ -5,6 +5,7 @@
 #include <mutex>
 #include <thread>
 
+#include "insitu/hw/lmc_cor.h"
 #include "insitu/hw/lmc_sim_board.h"
 #include "insitu/hw/sim_backend.h"
 
@@ -12,6 +13,8 @@ namespace insitu::hw {
 namespace {
 
 std::mutex g_mutex;
+
+constexpr double kSimulatedRenderAllowanceMs = 20000.0;
 
 class WallClock : public MachineClock {
  public:
@@ -47,6 +50,11 @@ Status ReplaceDevices(const MachineConfig& config, std::shared_ptr<sim::SimWorld
     } else {
       return InvalidArgument("lmc.transport '" + l.transport + "' is not usb or sim_board");
     }
+    if (!l.correction_file.empty()) {
+      INSITU_ASSIGN_OR_RETURN(const lmc::CorFile cor, lmc::ReadCor(l.correction_file));
+      INSITU_RETURN_IF_ERROR(lmc::UploadCorrection(*transport, lmc::ToBoard(cor))
+                                 .Prefixed("uploading " + l.correction_file));
+    }
     m->scanner = lmc::MakeScanner(std::move(transport), l.board);
   } else if (!config.scanner.empty() && config.scanner != config.backend) {
     return NotFound("scanner backend '" + config.scanner + "' does not exist (known: lmc)");
@@ -63,6 +71,9 @@ Status ReplaceDevices(const MachineConfig& config, std::shared_ptr<sim::SimWorld
       served->SetLostPacketRatio(config.aravis.lost_packet_ratio);
       m->peers.push_back(served);
       options.device = config.aravis.simulate_on;
+      // The served camera renders each frame on this computer after the trigger: on a loaded
+      // machine that takes seconds, which a real camera's timeout does not allow for.
+      options.frame_timeout_ms += kSimulatedRenderAllowanceMs;
       options.roi_width = world->options().camera.width_px;
       options.roi_height = world->options().camera.height_px;
     } else {

@@ -1,5 +1,6 @@
 #include "insitu/job/job_file.h"
 
+#include <cstdlib>
 #include <filesystem>
 
 namespace insitu::job {
@@ -285,6 +286,24 @@ void ReadStripeOptions(ConfigReader& r, vision::StripeOptions* o) {
   if (r.ok()) r.FailFromValidate(o->Validate());
 }
 
+namespace {
+
+// A 16-bit word as hardware documents write them: 0x9588, or decimal.
+void ReadWord(ConfigReader& r, const std::string& key, uint16_t* out) {
+  if (!r.Has(key)) return;
+  std::string text;
+  r.Read(key, &text);
+  char* end = nullptr;
+  const long v = std::strtol(text.c_str(), &end, 0);
+  if (text.empty() || end == nullptr || *end != '\0' || v < 0 || v > 0xFFFF) {
+    r.Fail(key, "'" + text + "' is not a 16-bit word (0x0000..0xFFFF)");
+    return;
+  }
+  *out = static_cast<uint16_t>(v);
+}
+
+}  // namespace
+
 void ReadMachine(ConfigReader& root, const std::string& folder, MachineSpec* spec) {
   ConfigReader& m = root.Section("machine");
   hw::MachineConfig& c = spec->config;
@@ -305,6 +324,7 @@ void ReadMachine(ConfigReader& root, const std::string& folder, MachineSpec* spe
     a.Read("frame_timeout_ms", &o.frame_timeout_ms);
     a.Read("socket_buffer_bytes", &o.socket_buffer_bytes);
     a.Read("reconnect", &o.reconnect);
+    a.ReadEnum("trigger", &o.trigger, {"software", "Line0", "Line1", "Line2", "Line3"});
     double roi[2] = {static_cast<double>(o.roi_width), static_cast<double>(o.roi_height)};
     a.ReadArray("roi_size_px", roi, 2);
     o.roi_width = static_cast<int>(roi[0]);
@@ -320,13 +340,8 @@ void ReadMachine(ConfigReader& root, const std::string& folder, MachineSpec* spe
     ConfigReader& l = m.Section("lmc");
     hw::LmcDeviceConfig& d = c.lmc;
     l.ReadEnum("transport", &d.transport, {"usb", "sim_board"});
-    int vid = d.usb.vid, pid = d.usb.pid;
-    l.Read("vid", &vid);
-    l.Read("pid", &pid);
-    if (vid < 0 || vid > 0xFFFF) l.Fail("vid", "must be a 16-bit USB vendor id");
-    if (pid < 0 || pid > 0xFFFF) l.Fail("pid", "must be a 16-bit USB product id");
-    d.usb.vid = static_cast<uint16_t>(vid);
-    d.usb.pid = static_cast<uint16_t>(pid);
+    ReadWord(l, "vid", &d.usb.vid);
+    ReadWord(l, "pid", &d.usb.pid);
     l.Read("bus", &d.usb.bus);
     l.Read("address", &d.usb.address);
     l.Read("timeout_ms", &d.usb.timeout_ms);
@@ -341,15 +356,16 @@ void ReadMachine(ConfigReader& root, const std::string& folder, MachineSpec* spe
     b.focus = focus == "none" ? hw::lmc::Focus::kNone : hw::lmc::Focus::kDaZWord;
     l.Read("z_units_per_mm", &b.z_units_per_mm);
     l.Read("focus_range_mm", &b.focus_range_mm);
-    int ports = b.list_ports, pointer = b.pointer_port;
-    l.Read("list_ports", &ports);
-    l.Read("pointer_port", &pointer);
-    b.list_ports = static_cast<uint16_t>(ports);
-    b.pointer_port = static_cast<uint16_t>(pointer);
+    ReadWord(l, "list_ports", &b.list_ports);
+    ReadWord(l, "pointer_port", &b.pointer_port);
     l.Read("open_mo_delay_us", &b.open_mo_delay_us);
     l.Read("polygon_delay_us", &b.polygon_delay_us);
     l.Read("poll_ms", &b.poll_ms);
     l.Read("list_timeout_s", &b.list_timeout_s);
+    std::string correction;
+    l.Read("correction", &correction);
+    if (!correction.empty()) d.correction_file = ResolvePath(folder, correction);
+    if (l.ok()) l.FailFromValidate(d.usb.Validate());
     if (l.ok()) l.FailFromValidate(b.Validate());
   }
 }

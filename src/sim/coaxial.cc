@@ -60,6 +60,7 @@ std::vector<float> Blur(const std::vector<float>& in, int w, int h, double sigma
 }  // namespace
 
 Result<Frame> SimWorld::GrabCoaxial(double exposure_us) {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
   const CoaxialCameraOptions& o = options_.scan_head.coaxial;
   if (!o.present) return FailedPrecondition("this scan head has no coaxial camera");
   if (!(exposure_us >= 10.0 && exposure_us <= 1e6)) {

@@ -55,6 +55,7 @@ SimWorld::SimWorld(const WorldOptions& options)
 }
 
 void SimWorld::RemovePart() {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
   options_.part.kind = "none";
   const double z = scene_->stage_z();
   scene_ = std::make_unique<Scene>(options_.part, options_.stage);
@@ -65,11 +66,13 @@ void SimWorld::RemovePart() {
 }
 
 void SimWorld::RemoveBoard() {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
   scene_->SetBoard(options_.board, -1);
   ambient_valid_ = false;
 }
 
 Status SimWorld::PlaceBoard(int index) {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
   if (!options_.board.present) return FailedPrecondition("there is no calibration board");
   if (index < 0) return InvalidArgument("board pose index must be >= 0");
   scene_->SetBoard(options_.board, index);
@@ -84,8 +87,12 @@ int SimWorld::board_pose_count() const {
 
 SimWorld::~SimWorld() = default;
 
-double SimWorld::now_s() const { return now_s_; }
+double SimWorld::now_s() const {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  return now_s_;
+}
 void SimWorld::Advance(double seconds) {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
   now_s_ += std::max(0.0, seconds);
   PaceTo(now_s_);
 }
@@ -123,6 +130,7 @@ bool SimWorld::CommandToAngles(const Eigen::Vector3d& p, MirrorAngles* angles) c
 
 Status SimWorld::StartPointerLine(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
                                   double speed_mm_per_s) {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
   const auto& sh = options_.scan_head;
   for (const Eigen::Vector3d& p : {from, to}) {
     if (std::abs(p.x()) > sh.field_half_size_mm || std::abs(p.y()) > sh.field_half_size_mm) {
@@ -143,6 +151,7 @@ Status SimWorld::StartPointerLine(const Eigen::Vector3d& from, const Eigen::Vect
 }
 
 void SimWorld::StopPointer() {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
   if (pointer_) CommandToAngles(PointerCommandAt(now_s_), &rest_angles_);
   pointer_.reset();
 }
@@ -193,6 +202,7 @@ void SimWorld::PointerSamples(double t0, double t1, std::vector<BeamSample>* sam
 Status SimWorld::ExecuteMarkingList(const std::vector<ListMove>& moves, const MarkingParams& p,
                                     const std::atomic<bool>* abort,
                                     const std::function<void(double)>& progress) {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
   if (!(p.jump_speed_mm_per_s > 0) || !(p.mark_speed_mm_per_s > 0)) {
     return InvalidArgument("list speeds must be > 0");
   }
@@ -338,6 +348,7 @@ Status SimWorld::ExecuteMarkingList(const std::vector<ListMove>& moves, const Ma
 }
 
 Status SimWorld::MoveHead(const Eigen::Vector3d& point_in_galvo) {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
   return ExecuteMarkingList({{ListMove::Kind::kJump, point_in_galvo}}, MarkingParams{});
 }
 
@@ -365,6 +376,7 @@ double SimWorld::MarkFactor(double x, double y, double half) const {
 }
 
 Status SimWorld::MoveStage(double z_mm) {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
   const auto& st = options_.stage;
   if (z_mm < st.min_z_mm || z_mm > st.max_z_mm) {
     return OutOfRange("stage z " + std::to_string(z_mm) + " mm is outside the travel [" +
@@ -379,6 +391,7 @@ Status SimWorld::MoveStage(double z_mm) {
 double SimWorld::stage_z() const { return scene_->stage_z(); }
 
 Status SimWorld::SetExposure(double exposure_us) {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
   if (!(exposure_us >= 10.0 && exposure_us <= 10e6)) {
     return OutOfRange("exposure " + std::to_string(exposure_us) +
                       " us is outside the camera's range [10, 1e7] us");
@@ -388,6 +401,7 @@ Status SimWorld::SetExposure(double exposure_us) {
 }
 
 Status SimWorld::SetGain(double gain_db) {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
   if (!(gain_db >= 0.0 && gain_db <= 24.0)) {
     return OutOfRange("gain " + std::to_string(gain_db) + " dB is outside [0, 24] dB");
   }
@@ -396,6 +410,7 @@ Status SimWorld::SetGain(double gain_db) {
 }
 
 Status SimWorld::SetBinning(int binning) {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
   if (binning != 1 && binning != 2 && binning != 4) {
     return InvalidArgument("binning " + std::to_string(binning) + " not supported (1, 2 or 4)");
   }
@@ -408,6 +423,7 @@ int SimWorld::binning() const { return binning_; }
 double SimWorld::exposure_us() const { return exposure_us_; }
 
 Result<Frame> SimWorld::Grab() {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
   const CameraOptions cam_opts = BinnedCamera(options_.camera, binning_);
   const CameraModel& cam = *camera_binned_;
   const int w = cam_opts.width_px, h = cam_opts.height_px;

@@ -183,8 +183,9 @@ Status WorldOptions::Validate() const {
   INSITU_RETURN_IF_ERROR(stage.Validate().Prefixed("stage"));
   INSITU_RETURN_IF_ERROR(board.Validate().Prefixed("board"));
   INSITU_RETURN_IF_ERROR(faults.Validate().Prefixed("faults"));
-  if (!(real_time_factor >= 0 && real_time_factor <= 1000)) {
-    return Bad("real_time_factor", "in [0, 1000]", real_time_factor);
+  if (!(real_time_factor == 0 || (real_time_factor >= 1e-3 && real_time_factor <= 1000))) {
+    return Bad("real_time_factor", "0 (as fast as possible) or in [0.001, 1000]",
+               real_time_factor);
   }
   return Status::Ok();
 }

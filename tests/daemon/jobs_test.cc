@@ -296,8 +296,8 @@ TEST(Jobs, ABadJobIsRefusedBeforeAnythingMoves) {
 // naming a calibration file this cell does not have runs on the cell's own.
 TEST(Jobs, TheDaemonsMachineWinsOverTheJobs) {
   ServerOptions o = Loopback("insitu_jobs_machine");
-  o.backend = "sim";
-  o.calibration = INSITU_SOURCE_DIR "/calib/as_designed.yaml";
+  o.machine_sets = {"machine.backend=sim",
+                    "machine.calibration=" INSITU_SOURCE_DIR "/calib/as_designed.yaml"};
   Server server(o);
   ASSERT_TRUE(server.Start().ok());
   Client c(server.port());

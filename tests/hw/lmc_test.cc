@@ -16,31 +16,35 @@
 
 #include "insitu/hw/lmc_cor.h"
 #include "insitu/hw/lmc_sim_board.h"
+#include "insitu/hw/machine.h"
 #include "insitu/hw/sim_backend.h"
 #include "insitu/sim/world.h"
 
 namespace insitu::hw::lmc {
 namespace {
 
-// The reference list (docs/hardware.md, "LMC"): a 10 mm square with corners at 25 and 35 mm
-// from the centre of a 110 mm lens, marked at 15 mm/s, full current, 20 kHz, laser on and off
-// delays 100 us, polygon delay 100 us, 8 ms for the oscillator, 300 us after the marks.
-constexpr char kReference[] =
+// The golden list (docs/hardware.md, "LMC"; meerk40t's `lmc_rect`): a 10 mm square with
+// corners 25 and 35 mm from the centre of a 110 mm lens, marked at 15 mm/s, full current,
+// 20 kHz, laser on and off delays 100 us, polygon delay 100 us, 8 ms for the oscillator. The
+// reference lists it up to the first mark; the rest of the square and the 300 us mark delay
+// follow from the same rules.
+constexpr char kGolden[] =
     "listReadyMark        0000 0000 0000 0000 0000\n"
     "listDelayTime        0320 0000 0000 0000 0000\n"
     "listWritePort        0001 0000 0000 0000 0000\n"
     "listJumpSpeed        04a7 0000 0000 0000 0000\n"
-    "listMarkCurrent      0fff 0000 0000 0000 0000\n"
     "listQSwitchPeriod    03e8 0000 0000 0000 0000\n"
+    "listMarkCurrent      0fff 0000 0000 0000 0000\n"
     "listMarkSpeed        0008 0000 0000 0000 0000\n"
     "listLaserOnDelay     0064 0000 0000 0000 0000\n"
     "listLaserOffDelay    0064 0000 0000 0000 0000\n"
-    "listPolygonDelay     0064 0000 0000 0000 0000\n"
-    "listJumpTo           ba2e 45d1 0000 5248 0000\n"
+    "listPolygonDelay     000a 0000 0000 0000 0000\n"
+    "listJumpTo           d174 2e8b 0000 7331 0000\n"
+    "listMarkTo           d174 45d1 0000 1746 0000\n";
+constexpr char kRestOfTheSquare[] =
+    "listMarkTo           ba2e 45d1 0000 1746 0000\n"
     "listMarkTo           ba2e 2e8b 0000 1746 0000\n"
     "listMarkTo           d174 2e8b 0000 1746 0000\n"
-    "listMarkTo           d174 45d1 0000 1746 0000\n"
-    "listMarkTo           ba2e 45d1 0000 1746 0000\n"
     "listDelayTime        001e 0000 0000 0000 0000\n";
 
 GalvoList ReferenceSquare() {
@@ -52,9 +56,9 @@ GalvoList ReferenceSquare() {
   l.laser_on_delay_us = 100.0;
   l.laser_off_delay_us = 100.0;
   l.mark_delay_us = 300.0;
-  l.entries.push_back({GalvoListEntry::Kind::kJump, {25, -25, 0}});
-  for (const auto& p : {Eigen::Vector3d(25, -35, 0), Eigen::Vector3d(35, -35, 0),
-                        Eigen::Vector3d(35, -25, 0), Eigen::Vector3d(25, -25, 0)}) {
+  l.entries.push_back({GalvoListEntry::Kind::kJump, {35, -35, 0}});
+  for (const auto& p : {Eigen::Vector3d(35, -25, 0), Eigen::Vector3d(25, -25, 0),
+                        Eigen::Vector3d(25, -35, 0), Eigen::Vector3d(35, -35, 0)}) {
     l.entries.push_back({GalvoListEntry::Kind::kMark, p});
   }
   return l;
@@ -66,15 +70,15 @@ TEST(Lmc, TheReferenceListByteForByte) {
   uint16_t z = 0x8000;
   const auto commands = EncodeList(ReferenceSquare(), o, &at, &z);
   ASSERT_TRUE(commands.ok()) << commands.status().ToString();
-  EXPECT_EQ(FormatCommands(*commands), kReference);
-  EXPECT_EQ(at[0], 0xba2e);
-  EXPECT_EQ(at[1], 0x45d1);
+  EXPECT_EQ(FormatCommands(*commands), std::string(kGolden) + kRestOfTheSquare);
+  EXPECT_EQ(at[0], 0xd174);
+  EXPECT_EQ(at[1], 0x2e8b);
 
   // On the wire: one packet, the words little-endian, padded with end-of-list.
   const auto packets = Packets(*commands);
   ASSERT_EQ(packets.size(), 1u);
   ASSERT_EQ(packets[0].size(), 3072u);
-  const uint8_t jump[12] = {0x01, 0x80, 0x2e, 0xba, 0xd1, 0x45, 0x00, 0x00, 0x48, 0x52, 0, 0};
+  const uint8_t jump[12] = {0x01, 0x80, 0x74, 0xd1, 0x8b, 0x2e, 0x00, 0x00, 0x31, 0x73, 0, 0};
   EXPECT_TRUE(std::equal(jump, jump + 12, packets[0].begin() + 10 * 12));
   for (size_t k = commands->size(); k < 256; ++k) {
     EXPECT_EQ(packets[0][12 * k], 0x02);
@@ -173,12 +177,17 @@ TEST(Lmc, TheCorrectionUploadInSignMagnitude) {
   ASSERT_EQ(upload->size(), 1u + 4225u);
   auto world = std::make_shared<sim::SimWorld>(sim::WorldOptions{});
   SimBoard board(world, BoardOptions{});
-  for (const auto& bytes : *upload) {
-    ASSERT_TRUE(board.Write(bytes.data(), bytes.size()).ok());
-    uint8_t reply[8];
-    ASSERT_TRUE(board.Read(reply, 8).ok());
-  }
+  ASSERT_TRUE(UploadCorrection(board, table).ok());
+  EXPECT_EQ(board.log().single_commands, 4226);  // one reply read: WriteCorLine is not answered
   EXPECT_EQ(board.log().correction, table.offsets);
+  // A machine whose board is to get a .cor file that is not there does not come up.
+  MachineConfig config;
+  config.scanner = "lmc";
+  config.lmc.transport = "sim_board";
+  config.lmc.correction_file = "/nonexistent/field.cor";
+  const auto machine = CreateMachine(config);
+  EXPECT_EQ(machine.status().code(), StatusCode::kNotFound);
+  EXPECT_NE(machine.status().message().find("field.cor"), std::string::npos);
   table.offsets[3] = {40000, 0};
   EXPECT_EQ(CorrectionUpload(table).status().code(), StatusCode::kOutOfRange);
 }
@@ -259,6 +268,39 @@ TEST(Lmc, MarkingThroughTheBoardMatchesTheHeadItself) {
         "(direct %.2f um)\n",
         z, b.size(), a.size(), worst_board * 1e3, worst_direct * 1e3);
   }
+}
+
+// A list longer than the board takes before it starts streams in as the board reports READY,
+// and marks as the head does.
+TEST(Lmc, LongListsStreamInPackets) {
+  sim::WorldOptions w;
+  w.part.kind = "none";
+  auto direct_world = std::make_shared<sim::SimWorld>(w);
+  auto board_world = std::make_shared<sim::SimWorld>(w);
+  BoardOptions o = SimHeadBoard();
+  o.packets_before_start = 1;
+  auto board = std::make_unique<SimBoard>(board_world, o);
+  const SimBoard* log = board.get();
+  auto lmc = MakeScanner(std::move(board), o);
+  GalvoList l = Hatch(0.0);
+  l.entries.clear();
+  for (int k = 0; k < 150; ++k) {  // 150 lines: ~610 commands, 3 packets
+    const double y = -15.0 + 0.2 * k;
+    l.entries.push_back({GalvoListEntry::Kind::kJump, {-2.0, y, 0.0}});
+    l.entries.push_back({GalvoListEntry::Kind::kMark, {2.0, y, 0.0}});
+  }
+  Machine direct = MakeSimMachine(direct_world);
+  ASSERT_TRUE(direct.scanner->Arm().ok());
+  ASSERT_TRUE(lmc->Arm().ok());
+  ASSERT_TRUE(direct.scanner->ExecuteList(l).ok());
+  const Status ran = lmc->ExecuteList(l);
+  ASSERT_TRUE(ran.ok()) << ran.ToString();
+  EXPECT_EQ(log->log().packets, 3);
+  const double ratio =
+      static_cast<double>(board_world->mark_pulses().size()) / direct_world->mark_pulses().size();
+  // A packet boundary inside a mark sequence restarts the emulated head's laser-on delay (a
+  // real board streams on): a few pulses of ~18000 at most.
+  EXPECT_NEAR(ratio, 1.0, 0.005) << board_world->mark_pulses().size();
 }
 
 TEST(Lmc, AbortStopsTheBoardAndTheLaser) {

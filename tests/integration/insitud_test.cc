@@ -175,12 +175,21 @@ TEST(Insitud, ABadConfigIsOneLineAndExit2) {
   }
 }
 
+// A cell whose board cannot be opened does not start serving: exit 1, nothing listens.
+TEST(Insitud, AMachineWhoseDeviceIsMissingDoesNotStart) {
+  const Daemon d = Start(
+      "version: 1\nport: 0\nmachine:\n  backend: sim\n  calibration: " INSITU_SOURCE_DIR
+      "/calib/as_designed.yaml\n  scanner: lmc\n  lmc:\n    transport: usb\n    pid: 0x0001\n");
+  EXPECT_EQ(d.port, 0);
+  EXPECT_EQ(ExitCode(d.pid), 1);
+}
+
 // The shipped example's keys, with the cell's machine, a queue and an admin token: only the
 // admin client may stop it.
 TEST(Insitud, TheDaemonsMachineQueueAndAdmin) {
   const Daemon d = Start(
-      "version: 1\nport: 0\nmachine:\n  backend: sim\n  calibration: calib/as_designed.yaml\n"
-      "queue: true\nmax_queued: 4\ntoken: op\nadmin_token: boss\n");
+      "version: 1\nport: 0\nmachine:\n  backend: sim\n  calibration: " INSITU_SOURCE_DIR
+      "/calib/as_designed.yaml\nqueue: true\nmax_queued: 4\ntoken: op\nadmin_token: boss\n");
   ASSERT_GT(d.port, 0);
   asio::io_context io;
   asio::ip::tcp::socket op(io), admin(io);

@@ -20,6 +20,7 @@
 #include <cstddef>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "insitu/core/status.h"
 #include "insitu/daemon/machine_state.h"
@@ -37,10 +38,10 @@ struct ServerOptions {
   double idle_timeout_s = 300.0;  // a client silent this long (or stalled mid-line) is closed
   std::string results_dir = "insitu-results";
   std::string jobs_dir = ".";  // relative job paths and inline jobs' relative paths
-  // The cell this daemon drives: every job runs on this backend with this calibration file,
-  // whatever its own machine: section says. Empty: the job's own.
-  std::string backend;
-  std::string calibration;
+  // The cell this daemon drives, as "machine.key=value" overrides applied to every job after
+  // the client's own (insitud's `machine:` section): the backend, the calibration file, the
+  // devices and their options, whatever the job's machine: section says. Empty: the job's own.
+  std::vector<std::string> machine_sets;
   bool queue = false;          // a run while a job runs: queued (true) or refused
   int max_queued = 8;
 

@@ -20,7 +20,10 @@ struct CameraOptions {
   // Which camera: an IP address, a serial number, a device id ("Vendor-Model-Serial") or a
   // user id (DeviceUserID). Empty: the only GigE camera found.
   std::string device;
-  int bit_depth = 8;  // 8 (Mono8) or 16 (Mono16)
+  int bit_depth = 8;  // 8 (Mono8), 12 (Mono12, in 16-bit samples) or 16 (Mono16)
+  // "software": each grab triggers the frame; "Line0".."Line3": a hardware trigger on that
+  // input (the grab waits for the pulse and the frame, up to the timeout).
+  std::string trigger = "software";
   // The image read out, unbinned, from the sensor's corner (0: the whole sensor). It is what
   // info() reports as the sensor and what the calibration file must describe.
   int roi_width = 0;

@@ -59,6 +59,7 @@ enum SingleOp : uint16_t {
   kSetEndOfList = 0x19,
   kStopExecute = 0x1F,
   kWritePort = 0x21,
+  kFiberSetMo = 0x33,  // the fibre laser's master oscillator: 1 open, 0 closed
 };
 
 constexpr uint16_t kStatusBusy = 0x04;
@@ -90,8 +91,10 @@ struct UsbSelector {
   uint16_t pid = 0x9899;
   int bus = -1;      // -1: any
   int address = -1;  // -1: any
-  int timeout_ms = 100;
-  int retries = 3;  // per transfer, on timeout
+  int timeout_ms = 100;  // 1..10000 (libusb's 0 would wait forever)
+  int retries = 3;       // 0..10 per transfer, on timeout
+
+  Status Validate() const;
 };
 
 // Opens and claims interface 0 of the board. Errors: not_found (no such board: lists what USB
@@ -112,10 +115,10 @@ struct BoardOptions {
   uint16_t list_ports = 0x0001;      // port word at the start of a marking list
   uint16_t pointer_port = 0x0100;    // the red pointer's output bit
   double open_mo_delay_us = 8000.0;  // the fibre laser's master oscillator settles
-  double polygon_delay_us = 100.0;
+  double polygon_delay_us = 100.0;  // sent in 10 us units
   int poll_ms = 2;  // status poll period while a list runs
   double list_timeout_s = 3600.0;
-  int packets_before_start = 64;  // then the rest are streamed as the board reports READY
+  int packets_before_start = 3;  // then the rest are streamed as the board reports READY
 
   Status Validate() const;
 };
@@ -145,12 +148,17 @@ std::string FormatCommands(const std::vector<Command>& commands);
 struct BoardCorrection {
   std::vector<std::array<int32_t, 2>> offsets;  // 4225
 };
-// WriteCorTable(1) and 4225 WriteCorLine commands (sign-magnitude words).
+// WriteCorTable(1) and 4225 WriteCorLine commands (sign-magnitude words). Only WriteCorTable
+// is answered.
 Result<std::vector<std::vector<uint8_t>>> CorrectionUpload(const BoardCorrection& table);
+// Sends them, reading each reply. Errors: out_of_range (an offset), device_error (transport).
+Status UploadCorrection(Transport& transport, const BoardCorrection& table);
 
-// A Scanner on an LMC board. Arm/Disarm enable and disable the laser output; a marking list is
-// streamed and polled until the board is done; control.abort sends StopExecute, disables the
-// laser and resets the list. The pointer sweeps with the pointer port on and the laser off.
+// A Scanner on an LMC board. Arm/Disarm enable and disable the laser output; a marking list
+// opens the fibre laser's master oscillator, is streamed (every packet after the board reports
+// READY) and polled until the board is done, and closes it again; control.abort (checked while
+// streaming and polling) sends StopExecute, closes the oscillator, disables the laser and
+// resets the list. The pointer sweeps with the pointer port on and the laser off.
 std::unique_ptr<Scanner> MakeScanner(std::unique_ptr<Transport> transport, BoardOptions options);
 
 }  // namespace insitu::hw::lmc

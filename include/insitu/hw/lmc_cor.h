@@ -5,10 +5,11 @@
 //                 0x1C, then 65 x 65 (dx, dy) int32 pairs from 0x24, x outer, and 4 bytes.
 //   "LMC1COR_1.0": a 22-byte label, 2 bytes, 63 doubles (the scale is the 44th), then 65 x 65
 //                 (dx, dy) double pairs.
-// The 65 x 65 nodes span the board's 65536 units (node i at i * 1024 units); the lens field is
-// 65536 / scale mm. Offsets here are what the board adds at the node, in units: the sign of the
-// JCZ format's stored values is the opposite (docs/hardware.md says where these facts come from
-// and what was not verified on a board).
+// The 22-byte labels are UTF-16LE as EzCad writes them (8-bit labels are read too). The 65 x 65
+// nodes span the board's 65536 units (node i at i * 1024 units); the lens field is
+// 65536 / scale mm. Offsets are what is uploaded for the node (WriteCorLine), in units, as
+// stored in both formats, within the board's +-32767 (docs/hardware.md says where these facts
+// come from and what was not verified on a board).
 #pragma once
 
 #include <Eigen/Core>
@@ -37,7 +38,7 @@ struct CorFile {
 // Errors: not_found (cannot read), parse_error naming the file and what is wrong (label, size,
 // scale, a non-finite offset).
 Result<CorFile> ReadCor(const std::string& path);
-// Errors: out_of_range (a JCZ offset beyond int32), device_error (cannot write).
+// Errors: out_of_range (an offset beyond +-32767 or not finite), device_error (cannot write).
 Status WriteCor(const std::string& path, const CorFile& cor);
 
 // The table for the board (rounded to whole units).

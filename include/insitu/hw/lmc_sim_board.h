@@ -20,6 +20,7 @@ struct SimBoardLog {
   int lists_executed = 0;
   int stops = 0;
   bool laser_enabled = false;
+  bool mo_open = false;  // the fibre laser's master oscillator
   uint16_t ports = 0;
   std::vector<std::array<int32_t, 2>> correction;  // as uploaded, signed
 };

@@ -46,7 +46,8 @@ struct Machine {
 struct AravisDeviceConfig {
   aravis::CameraOptions camera;
   // Backend sim only: serve the world's camera as a GigE Vision camera on this local address
-  // (127.0.0.x) and open that one, so frames travel over real GVCP/GVSP. Empty: a real camera.
+  // (127.0.0.1) and open that one, so frames travel over real GVCP/GVSP. Its frame timeout
+  // gets 20 s more: the simulator renders each frame after the trigger. Empty: a real camera.
   std::string simulate_on;
   double lost_packet_ratio = 0.0;  // of the served camera's packets (a lossy link)
 };
@@ -56,6 +57,7 @@ struct LmcDeviceConfig {
   std::string transport = "usb";  // usb, or sim_board: the board emulator on the simulated head
   lmc::UsbSelector usb;
   lmc::BoardOptions board;
+  std::string correction_file;  // a .cor file uploaded to the board when it opens
 };
 
 // What a backend needs to come up. Each backend reads only its own part.

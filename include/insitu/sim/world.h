@@ -183,6 +183,9 @@ class SimWorld {
   // of letting virtual time race ahead afterwards.
   void PaceTo(double t);
 
+  // The devices' threads (a served GigE camera, a board emulator) and the job's thread may
+  // reach the world at once: every public operation that changes it takes this lock.
+  mutable std::recursive_mutex mutex_;
   WorldOptions options_;
   std::unique_ptr<Scene> scene_;
   std::unique_ptr<ScanOptics> true_optics_;

@@ -148,9 +148,11 @@ class AravisCamera : public Camera {
                              std::to_string(info_.sensor_height_px) + " region on a " +
                              std::to_string(sw) + " x " + std::to_string(sh) + " sensor");
     }
-    arv_camera_set_pixel_format(
-        camera_, options_.bit_depth > 8 ? ARV_PIXEL_FORMAT_MONO_16 : ARV_PIXEL_FORMAT_MONO_8,
-        &error);
+    arv_camera_set_pixel_format(camera_,
+                                options_.bit_depth == 16   ? ARV_PIXEL_FORMAT_MONO_16
+                                : options_.bit_depth == 12 ? ARV_PIXEL_FORMAT_MONO_12
+                                                           : ARV_PIXEL_FORMAT_MONO_8,
+                                &error);
     if (error != nullptr) return fail("pixel format");
     // The trigger is honoured on the camera's frame clock: run it fast. First: setting the
     // rate turns the trigger off on many cameras.
@@ -158,13 +160,24 @@ class AravisCamera : public Camera {
     arv_camera_get_frame_rate_bounds(camera_, &lo, &hi, &error);
     if (error == nullptr) arv_camera_set_frame_rate(camera_, hi, &error);
     g_clear_error(&error);  // not every camera has a settable rate
-    arv_camera_set_trigger(camera_, "Software", &error);
-    if (error != nullptr) return fail("software trigger");
+    const bool software = options_.trigger == "software";
+    arv_camera_set_trigger(camera_, software ? "Software" : options_.trigger.c_str(), &error);
+    if (error != nullptr) return fail("trigger " + options_.trigger);
     arv_camera_gv_set_packet_size(camera_, options_.packet_size, &error);
     if (error != nullptr) return fail("packet size " + std::to_string(options_.packet_size));
     if (exposure_us_ > 0) {
       arv_camera_set_exposure_time(camera_, exposure_us_, &error);
       if (error != nullptr) return fail("exposure");
+    } else {
+      // Whatever the camera was left at: the grab timeout includes it.
+      exposure_us_ = arv_camera_get_exposure_time(camera_, &error);
+      if (error != nullptr) return fail("exposure");
+    }
+    // The binning this camera object works at (after a reconnect, the one it had): the
+    // region below is set in binned pixels.
+    if (const Status b = WriteBinning(binning_); !b.ok()) {
+      Disconnect();
+      return b;
     }
     arv_camera_set_gain(camera_, gain_db_, &error);
     if (error != nullptr) return fail("gain");
@@ -238,13 +251,7 @@ class AravisCamera : public Camera {
     if (binning == binning_) return Status::Ok();
     INSITU_RETURN_IF_ERROR(EnsureConnected());
     StopStream();
-    GError* error = nullptr;
-    for (const char* feature : {"BinningHorizontal", "BinningVertical"}) {
-      if (arv_camera_is_feature_available(camera_, feature, &error)) {
-        arv_camera_set_integer(camera_, feature, binning, &error);
-      }
-      if (error != nullptr) return Lost(std::string(feature) + ": " + Take(&error));
-    }
+    INSITU_RETURN_IF_ERROR(WriteBinning(binning));
     binning_ = binning;
     return StartStream();
   }
@@ -253,10 +260,23 @@ class AravisCamera : public Camera {
   Result<Frame> GrabFrame() override {
     INSITU_RETURN_IF_ERROR(EnsureConnected());
     GError* error = nullptr;
-    arv_camera_software_trigger(camera_, &error);
-    if (error != nullptr) return Lost("trigger: " + Take(&error), /*reachable=*/false);
+    if (options_.trigger == "software") {
+      arv_camera_software_trigger(camera_, &error);
+      if (error != nullptr) return Lost("trigger: " + Take(&error), /*reachable=*/false);
+    }
+    const bool hardware = options_.trigger != "software";
+    if (hardware) {
+      // Frames from pulses that came before this grab are not this grab's: drop them.
+      while (ArvBuffer* old = arv_stream_try_pop_buffer(stream_)) arv_stream_push_buffer(stream_, old);
+    }
     const double wait_ms = exposure_us_ * 1e-3 + options_.frame_timeout_ms;
     ArvBuffer* buffer = arv_stream_timeout_pop_buffer(stream_, static_cast<guint64>(wait_ms * 1e3));
+    if (buffer == nullptr && hardware) {
+      // No pulse on the trigger input is not a lost camera.
+      return Status(StatusCode::kDeviceError,
+                    "GigE camera at " + address_ + ": no trigger pulse on " + options_.trigger +
+                        " within " + std::to_string(static_cast<int>(wait_ms)) + " ms");
+    }
     if (buffer == nullptr) {
       // Nothing at all: the camera may be gone. Open it again on the next grab.
       return Lost("no frame within " + std::to_string(static_cast<int>(wait_ms)) + " ms");
@@ -297,6 +317,23 @@ class AravisCamera : public Camera {
     }
     if (lost_) Logger("hw")->info("GigE camera at {} is back", address_);
     lost_ = false;
+    return Status::Ok();
+  }
+
+  // Sets both binning features; a camera without them can only run unbinned.
+  Status WriteBinning(int binning) {
+    GError* error = nullptr;
+    for (const char* feature : {"BinningHorizontal", "BinningVertical"}) {
+      const bool available = arv_camera_is_feature_available(camera_, feature, &error);
+      if (error != nullptr) return Lost(std::string(feature) + ": " + Take(&error));
+      if (!available) {
+        if (binning == 1) continue;
+        return OutOfRange("GigE camera at " + address_ + " has no " + feature +
+                          ": it cannot bin " + std::to_string(binning) + " x");
+      }
+      arv_camera_set_integer(camera_, feature, binning, &error);
+      if (error != nullptr) return Lost(std::string(feature) + ": " + Take(&error));
+    }
     return Status::Ok();
   }
 

@@ -4,7 +4,13 @@
 namespace insitu::hw::aravis {
 
 Status CameraOptions::Validate() const {
-  if (bit_depth != 8 && bit_depth != 16) return InvalidArgument("bit_depth must be 8 or 16");
+  if (bit_depth != 8 && bit_depth != 12 && bit_depth != 16) {
+    return InvalidArgument("bit_depth must be 8 (Mono8), 12 (Mono12) or 16 (Mono16)");
+  }
+  if (trigger != "software" && trigger != "Line0" && trigger != "Line1" && trigger != "Line2" &&
+      trigger != "Line3") {
+    return InvalidArgument("trigger must be software or Line0..Line3");
+  }
   if (packet_size < 576 || packet_size > 16000) {
     return InvalidArgument("packet_size must be in 576..16000 bytes");
   }

@@ -31,11 +31,29 @@ void Append(std::string* b, T v) {
   b->append(reinterpret_cast<const char*>(&v), sizeof v);
 }
 
+// The 22-byte label as EzCad writes it: 11 UTF-16LE characters.
 std::string Label(const char* text) {
-  std::string l(text);
+  std::string l;
+  for (const char* c = text; *c != '\0'; ++c) {
+    l.push_back(*c);
+    l.push_back('\0');
+  }
   l.resize(kLabelBytes, '\0');
   return l;
 }
+
+// The label's text, read as UTF-16LE (EzCad) or as 8-bit characters (other writers).
+std::string LabelText(const std::string& b) {
+  std::string wide, narrow;
+  for (size_t i = 0; i + 1 < kLabelBytes; i += 2) {
+    if (b[i] == '\0') break;
+    wide.push_back(b[i]);
+  }
+  for (size_t i = 0; i < kLabelBytes && b[i] != '\0'; ++i) narrow.push_back(b[i]);
+  return wide.size() > narrow.size() ? wide : narrow;
+}
+
+constexpr double kMaxOffset = 32767.0;  // what a WriteCorLine word can carry
 
 }  // namespace
 
@@ -52,9 +70,9 @@ Result<CorFile> ReadCor(const std::string& path) {
   const auto bad = [&](const std::string& what) { return ParseError(path + ": " + what); };
   if (b.size() < kLabelBytes) return bad("too short for a .cor file");
   CorFile cor;
-  const std::string label = b.substr(0, 11);
+  const std::string label = LabelText(b);
   size_t table = 0;
-  if (label == kJczLabel) {
+  if (label.rfind(kJczLabel, 0) == 0) {
     if (b.size() != kJczBytes) {
       return bad(std::to_string(b.size()) + " bytes; a JCZ_COR_2_1 file has " +
                  std::to_string(kJczBytes));
@@ -62,7 +80,7 @@ Result<CorFile> ReadCor(const std::string& path) {
     cor.format = CorFormat::kJcz2;
     cor.scale = Get<double>(b, 0x1C);
     table = kJczTable;
-  } else if (label == kLmcLabel) {
+  } else if (label.rfind(kLmcLabel, 0) == 0) {
     const size_t need = kLmcTable + kNodes * kNodes * 16;
     if (b.size() < need) {
       return bad(std::to_string(b.size()) + " bytes; a LMC1COR_1.0 file needs " +
@@ -80,13 +98,15 @@ Result<CorFile> ReadCor(const std::string& path) {
   cor.offsets.resize(kNodes * kNodes);
   for (size_t n = 0; n < cor.offsets.size(); ++n) {
     if (cor.format == CorFormat::kJcz2) {
-      // Stored with the opposite sign of what the board adds.
-      cor.offsets[n] = {-static_cast<double>(Get<int32_t>(b, table + 8 * n)),
-                        -static_cast<double>(Get<int32_t>(b, table + 8 * n + 4))};
+      cor.offsets[n] = {static_cast<double>(Get<int32_t>(b, table + 8 * n)),
+                        static_cast<double>(Get<int32_t>(b, table + 8 * n + 4))};
     } else {
       cor.offsets[n] = {Get<double>(b, table + 16 * n), Get<double>(b, table + 16 * n + 8)};
-      if (!std::isfinite(cor.offsets[n][0]) || !std::isfinite(cor.offsets[n][1])) {
-        return bad("node " + std::to_string(n) + " holds a non-finite offset");
+    }
+    for (double v : cor.offsets[n]) {
+      if (!std::isfinite(v) || std::abs(v) > kMaxOffset) {
+        return bad("node " + std::to_string(n) + " holds an offset of " + std::to_string(v) +
+                   " units, beyond the board's +-32767");
       }
     }
   }
@@ -98,17 +118,21 @@ Status WriteCor(const std::string& path, const CorFile& cor) {
     return InvalidArgument("a .cor table has 65 x 65 nodes, not " +
                            std::to_string(cor.offsets.size()));
   }
+  for (const auto& o : cor.offsets) {
+    for (double v : o) {
+      if (!std::isfinite(v) || std::abs(v) > kMaxOffset) {
+        return OutOfRange("a .cor offset of " + std::to_string(v) +
+                          " units is beyond the board's +-32767");
+      }
+    }
+  }
   std::string b;
   if (cor.format == CorFormat::kJcz2) {
     b = Label(kJczLabel);
     b.append(6, '\0');
     Append(&b, cor.scale);
     for (const auto& o : cor.offsets) {
-      for (double v : o) {
-        const double stored = -std::round(v);
-        if (std::abs(stored) > 2147483647.0) return OutOfRange("a .cor offset beyond int32");
-        Append(&b, static_cast<int32_t>(stored));
-      }
+      for (double v : o) Append(&b, static_cast<int32_t>(std::lround(v)));
     }
     b.append(4, '\0');
   } else {

@@ -22,12 +22,20 @@ Command Delay(uint16_t op, double us) {
           0};
 }
 
+// Truncated, as the reference list's distances are.
 uint16_t Distance(const std::array<uint16_t, 2>& a, const std::array<uint16_t, 2>& b) {
   const double d = std::hypot(static_cast<double>(a[0]) - b[0], static_cast<double>(a[1]) - b[1]);
-  return static_cast<uint16_t>(std::min(std::round(d), 65535.0));
+  return static_cast<uint16_t>(std::min(std::floor(d), 65535.0));
 }
 
 }  // namespace
+
+Status UsbSelector::Validate() const {
+  if (timeout_ms < 1 || timeout_ms > 10000) return InvalidArgument("timeout_ms must be in 1..10000");
+  if (retries < 0 || retries > 10) return InvalidArgument("retries must be in 0..10");
+  if (bus < -1 || address < -1) return InvalidArgument("bus and address must be >= 0 (or -1: any)");
+  return Status::Ok();
+}
 
 Status BoardOptions::Validate() const {
   if (!(lens_mm > 1.0 && lens_mm < 2000.0)) return InvalidArgument("lens_mm must be in (1, 2000)");
@@ -100,15 +108,17 @@ Result<std::vector<Command>> EncodeList(const GalvoList& list, const BoardOption
       {kDelayTime, static_cast<uint16_t>(std::round(o.open_mo_delay_us / 10.0)), 0, 0, 0, 0});
   out.push_back({kWritePortList, o.list_ports, 0, 0, 0, 0});
   out.push_back({kJumpSpeed, speed(list.jump_speed_mm_per_s), 0, 0, 0, 0});
-  out.push_back(
-      {kMarkCurrent, static_cast<uint16_t>(std::round(list.laser_power * 0xFFF)), 0, 0, 0, 0});
   out.push_back({kQSwitchPeriod,
                  static_cast<uint16_t>(std::round(20000.0 / list.laser_frequency_khz)), 0, 0, 0,
                  0});
+  out.push_back(
+      {kMarkCurrent, static_cast<uint16_t>(std::round(list.laser_power * 0xFFF)), 0, 0, 0, 0});
   out.push_back({kMarkSpeed, speed(list.mark_speed_mm_per_s), 0, 0, 0, 0});
   out.push_back(Delay(kLaserOnDelay, list.laser_on_delay_us));
   out.push_back(Delay(kLaserOffDelay, list.laser_off_delay_us));
-  out.push_back(Delay(kPolygonDelay, o.polygon_delay_us));
+  // The polygon delay in 10 us units (the reference list's 0x000a for 100 us).
+  out.push_back({kPolygonDelay, static_cast<uint16_t>(std::round(o.polygon_delay_us / 10.0)), 0,
+                 0, 0, 0});
 
   const auto& entries = list.entries;
   for (size_t i = 0; i < entries.size(); ++i) {
@@ -222,12 +232,24 @@ Result<std::vector<std::vector<uint8_t>>> CorrectionUpload(const BoardCorrection
     return static_cast<uint16_t>(v < 0 ? -v + 0x8000 : v);
   };
   std::vector<std::vector<uint8_t>> out{SingleCommand(kWriteCorTable, 1)};
+  out.reserve(1 + table.offsets.size());
   for (size_t i = 0; i < table.offsets.size(); ++i) {
     INSITU_ASSIGN_OR_RETURN(const uint16_t dx, word(table.offsets[i][0]));
     INSITU_ASSIGN_OR_RETURN(const uint16_t dy, word(table.offsets[i][1]));
     out.push_back(SingleCommand(kWriteCorLine, dx, dy, i == 0 ? 0 : 1));
   }
   return out;
+}
+
+Status UploadCorrection(Transport& transport, const BoardCorrection& table) {
+  INSITU_ASSIGN_OR_RETURN(const auto commands, CorrectionUpload(table));
+  uint8_t reply[kReplyBytes];
+  for (size_t i = 0; i < commands.size(); ++i) {
+    INSITU_RETURN_IF_ERROR(transport.Write(commands[i].data(), commands[i].size()));
+    // WriteCorTable is answered; the board sends no reply to a WriteCorLine.
+    if (i == 0) INSITU_RETURN_IF_ERROR(transport.Read(reply, sizeof reply));
+  }
+  return Status::Ok();
 }
 
 }  // namespace insitu::hw::lmc

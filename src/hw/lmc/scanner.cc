@@ -1,8 +1,10 @@
 // The Scanner on an LMC board: single commands answered by a status reply, lists streamed in
 // packets and polled until the board is no longer busy.
+#include <algorithm>
 #include <chrono>
 #include <mutex>
 #include <thread>
+#include <utility>
 
 #include "insitu/hw/lmc.h"
 
@@ -15,9 +17,8 @@ class BoardScanner : public Scanner {
       : transport_(std::move(transport)), options_(options) {}
 
   ~BoardScanner() override {
-    // Leave the board safe: nothing running, the laser output off.
-    (void)Single(kStopExecute);
-    (void)Single(kDisableLaser);
+    // Leave the board safe: nothing running, the oscillator closed, the laser output off.
+    (void)Abort();
   }
 
   ScannerInfo info() const override {
@@ -47,19 +48,29 @@ class BoardScanner : public Scanner {
     light.list_ports = options_.pointer_port;
     light.open_mo_delay_us = 0.0;
     INSITU_RETURN_IF_ERROR(Goto(from));
-    INSITU_ASSIGN_OR_RETURN(auto commands, EncodeList(sweep, light, &position_, &z_word_));
+    std::array<uint16_t, 2> position = position_;
+    uint16_t z_word = z_word_;
+    INSITU_ASSIGN_OR_RETURN(auto commands, EncodeList(sweep, light, &position, &z_word));
     INSITU_RETURN_IF_ERROR(Single(kWritePort, options_.pointer_port).status());
-    INSITU_RETURN_IF_ERROR(SendList(commands));
-    pointer_on_ = true;
+    pointer_on_ = true;  // from here on, stopping it is needed
+    const Status sent = SendList(commands, ListControl{});
+    if (!sent.ok()) {
+      (void)StopPointer();
+      return sent;
+    }
+    position_ = position;
+    z_word_ = z_word;
     return Status::Ok();
   }
 
   Status StopPointer() override {
     if (!pointer_on_) return Status::Ok();
-    pointer_on_ = false;
     INSITU_RETURN_IF_ERROR(Single(kStopExecute).status());
     INSITU_RETURN_IF_ERROR(Single(kWritePort, 0).status());
-    return Single(kResetList).status();
+    INSITU_RETURN_IF_ERROR(Single(kResetList).status());
+    pointer_on_ = false;
+    z_word_ = 0;  // where the sweep was stopped is not known
+    return Status::Ok();
   }
 
   Status Arm() override {
@@ -77,37 +88,39 @@ class BoardScanner : public Scanner {
   Status RunList(const GalvoList& list, const ListControl& control) override {
     bool marks = false;
     for (const GalvoListEntry& e : list.entries) marks |= e.kind == GalvoListEntry::Kind::kMark;
-    if (marks && !armed_)
-      return FailedPrecondition("the list marks but the scan head is not armed");
+    if (marks && !armed_) return FailedPrecondition("the list marks but the scan head is not armed");
     INSITU_RETURN_IF_ERROR(StopPointer());
     std::array<uint16_t, 2> position = position_;
     uint16_t z_word = z_word_;
     INSITU_ASSIGN_OR_RETURN(auto commands, EncodeList(list, options_, &position, &z_word));
-    INSITU_RETURN_IF_ERROR(SendList(commands));
+    const double estimate_s = Duration(list);
+    // From here on every way out leaves the board stopped and the oscillator closed.
+    z_word_ = 0;  // unknown until the list has run
+    if (marks) INSITU_RETURN_IF_ERROR(Single(kFiberSetMo, 1).status());
     const auto start = std::chrono::steady_clock::now();
+    const Status sent = SendList(commands, control);
+    if (!sent.ok()) return Stopped(sent);
     for (;;) {
       if (control.abort != nullptr && control.abort->load()) {
-        const Status stopped = Abort();
-        if (!stopped.ok()) return stopped.Prefixed("aborting the list");
-        return Status(StatusCode::kCancelled,
-                      "list aborted: StopExecute sent, laser output disabled");
+        return Stopped(Status(StatusCode::kCancelled,
+                              "list aborted: StopExecute sent, oscillator closed, laser output "
+                              "disabled"));
       }
       auto status = Single(kGetVersion);
-      if (!status.ok()) {
-        (void)Abort();
-        return status.status().Prefixed("while the list ran");
-      }
+      if (!status.ok()) return Stopped(status.status().Prefixed("while the list ran"));
       if (!(*status & kStatusBusy)) break;
       const double elapsed =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       if (elapsed > options_.list_timeout_s) {
-        (void)Abort();
-        return Status(StatusCode::kDeviceError, "the board was still busy after " +
-                                                    std::to_string(options_.list_timeout_s) +
-                                                    " s: list aborted");
+        return Stopped(Status(StatusCode::kDeviceError,
+                              "the board was still busy after " +
+                                  std::to_string(options_.list_timeout_s) + " s"));
       }
+      // The board tells no progress: the list's own time estimate stands in, short of 1.
+      if (control.progress && estimate_s > 0) control.progress(std::min(0.99, elapsed / estimate_s));
       std::this_thread::sleep_for(std::chrono::milliseconds(options_.poll_ms));
     }
+    if (marks) INSITU_RETURN_IF_ERROR(Single(kFiberSetMo, 0).status());
     position_ = position;
     z_word_ = z_word;
     if (control.progress) control.progress(1.0);
@@ -131,15 +144,16 @@ class BoardScanner : public Scanner {
     return Status::Ok();
   }
 
-  // ResetList, the first packets each with SetEndOfList, ExecuteList, then the rest as the
-  // board reports READY.
-  Status SendList(const std::vector<Command>& commands) {
+  // ResetList, then every packet once the board reports READY, each with SetEndOfList, and
+  // ExecuteList after the first packets_before_start of them. The abort flag is checked before
+  // every packet.
+  Status SendList(const std::vector<Command>& commands, const ListControl& control) {
     const auto packets = Packets(commands);
     INSITU_RETURN_IF_ERROR(Single(kResetList).status());
     const size_t before =
         std::min(packets.size(), static_cast<size_t>(options_.packets_before_start));
     for (size_t i = 0; i < packets.size(); ++i) {
-      if (i >= before) INSITU_RETURN_IF_ERROR(WaitReady());
+      INSITU_RETURN_IF_ERROR(WaitReady(control));
       INSITU_RETURN_IF_ERROR(transport_->Write(packets[i].data(), packets[i].size()));
       INSITU_RETURN_IF_ERROR(Single(kSetEndOfList).status());
       if (i + 1 == before) INSITU_RETURN_IF_ERROR(Single(kExecuteList).status());
@@ -147,9 +161,35 @@ class BoardScanner : public Scanner {
     return Status::Ok();
   }
 
-  Status WaitReady() {
+  // The list's time on the head: moves at their speeds plus the delays (for progress only).
+  static double Duration(const GalvoList& list) {
+    double s = 0.0;
+    Eigen::Vector3d at = Eigen::Vector3d::Zero();
+    for (const GalvoListEntry& e : list.entries) {
+      const bool mark = e.kind == GalvoListEntry::Kind::kMark;
+      s += (e.to_in_galvo - at).norm() /
+           (mark ? list.mark_speed_mm_per_s : list.jump_speed_mm_per_s);
+      s += (mark ? list.mark_delay_us : list.jump_delay_us) * 1e-6;
+      at = e.to_in_galvo;
+    }
+    return s;
+  }
+
+  // Stops the board and makes it safe after `why`, which is returned (with the stop's own
+  // failure, if any).
+  Status Stopped(const Status& why) {
+    const Status stopped = Abort();
+    if (stopped.ok()) return why;
+    return Status(why.code(),
+                  why.message() + "; stopping the board also failed: " + stopped.message());
+  }
+
+  Status WaitReady(const ListControl& control) {
     const auto start = std::chrono::steady_clock::now();
     for (;;) {
+      if (control.abort != nullptr && control.abort->load()) {
+        return Status(StatusCode::kCancelled, "list aborted while it streamed");
+      }
       INSITU_ASSIGN_OR_RETURN(const uint16_t s, Single(kGetVersion));
       if (s & kStatusReady) return Status::Ok();
       if (std::chrono::steady_clock::now() - start > std::chrono::seconds(10)) {
@@ -160,12 +200,19 @@ class BoardScanner : public Scanner {
     }
   }
 
-  // StopExecute, laser output off, list reset: the board's way to stop at once.
+  // StopExecute, the oscillator closed, the laser output off, the list reset: every one tried
+  // whatever the others did; the first failure is returned.
   Status Abort() {
-    INSITU_RETURN_IF_ERROR(Single(kStopExecute).status());
     armed_ = false;
-    INSITU_RETURN_IF_ERROR(Single(kDisableLaser).status());
-    return Single(kResetList).status();
+    z_word_ = 0;
+    Status first = Status::Ok();
+    const std::pair<uint16_t, uint16_t> steps[] = {
+        {kStopExecute, 0}, {kFiberSetMo, 0}, {kDisableLaser, 0}, {kResetList, 0}};
+    for (const auto& [op, p1] : steps) {
+      const Status s = Single(op, p1).status();
+      if (!s.ok() && first.ok()) first = s;
+    }
+    return first;
   }
 
   std::unique_ptr<Transport> transport_;

@@ -77,7 +77,8 @@ struct SimBoard::Impl {
     std::unique_lock<std::mutex> shared(mutex, std::defer_lock);
     if (!locked) shared.lock();
     uint16_t ports = log.ports;
-    const bool laser_enabled = log.laser_enabled;
+    // The laser emits only with its output enabled and the master oscillator open.
+    const bool laser_enabled = log.laser_enabled && log.mo_open;
     if (!locked) shared.unlock();
     std::vector<sim::ListMove> moves;
     bool marks = false;
@@ -155,7 +156,7 @@ struct SimBoard::Impl {
       case kGetVersion:
         break;
       case kResetList:
-        if (!running) buffer.clear();
+        buffer.clear();
         list_open = false;
         break;
       case kExecuteList:
@@ -182,6 +183,9 @@ struct SimBoard::Impl {
       case kEnableLaser:
         log.laser_enabled = true;
         break;
+      case kFiberSetMo:
+        log.mo_open = c[1] != 0;
+        break;
       case kDisableLaser:
         log.laser_enabled = false;
         break;
@@ -203,7 +207,7 @@ struct SimBoard::Impl {
           return w & 0x8000 ? -static_cast<int32_t>(w & 0x7FFF) : static_cast<int32_t>(w);
         };
         log.correction.push_back({value(c[1]), value(c[2])});
-        break;
+        return;  // the board does not answer a correction line
       }
       default:
         break;

@@ -2,6 +2,7 @@
 // retries. Every failure names the board (bus-address VID:PID) and what libusb said.
 #include <libusb.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <string>
 
@@ -33,22 +34,35 @@ class UsbTransport : public Transport {
   }
 
   Status Write(const uint8_t* data, size_t size) override {
+    if (stale_reply_) Drain();
     return Transfer(kOut, const_cast<uint8_t*>(data), size, "write");
   }
-  Status Read(uint8_t* data, size_t size) override { return Transfer(kIn, data, size, "read"); }
+  Status Read(uint8_t* data, size_t size) override {
+    const Status s = Transfer(kIn, data, size, "read");
+    // A reply that comes after we gave up would answer the next command: drop it first.
+    if (!s.ok()) stale_reply_ = true;
+    return s;
+  }
   std::string Describe() const override { return name_; }
 
  private:
+  // A timed-out transfer may have moved part of the data: the retry goes on from there, never
+  // sends bytes twice (a list shifted by a few bytes would be executed as garbage).
   Status Transfer(unsigned char endpoint, uint8_t* data, size_t size, const char* what) {
-    int done = 0;
+    size_t moved = 0;
     int rc = LIBUSB_ERROR_TIMEOUT;
     for (int attempt = 0; attempt <= selector_.retries && rc == LIBUSB_ERROR_TIMEOUT; ++attempt) {
-      rc = libusb_bulk_transfer(handle_, endpoint, data, static_cast<int>(size), &done,
-                                static_cast<unsigned>(selector_.timeout_ms));
+      int done = 0;
+      rc = libusb_bulk_transfer(handle_, endpoint, data + moved, static_cast<int>(size - moved),
+                                &done, static_cast<unsigned>(selector_.timeout_ms));
+      moved += static_cast<size_t>(std::max(done, 0));
+      if (rc == LIBUSB_ERROR_TIMEOUT && moved == size) rc = 0;
       if (rc == LIBUSB_ERROR_TIMEOUT && attempt < selector_.retries) {
-        Logger("hw")->warn("{}: {} of {} bytes timed out, retrying", name_, what, size);
+        Logger("hw")->warn("{}: {} of {} bytes timed out after {}, retrying", name_, what, size,
+                           moved);
       }
     }
+    const int done = static_cast<int>(moved);
     if (rc != 0) {
       return Status(
           StatusCode::kDeviceError,
@@ -64,6 +78,17 @@ class UsbTransport : public Transport {
     return Status::Ok();
   }
 
+  // Reads whatever replies are pending, with a short timeout, and drops them.
+  void Drain() {
+    uint8_t junk[64];
+    int done = 0;
+    for (int k = 0; k < 16; ++k) {
+      if (libusb_bulk_transfer(handle_, kIn, junk, sizeof junk, &done, 10) != 0) break;
+    }
+    stale_reply_ = false;
+  }
+
+  bool stale_reply_ = false;
   libusb_context* context_;
   libusb_device_handle* handle_;
   std::string name_;
@@ -73,6 +98,7 @@ class UsbTransport : public Transport {
 }  // namespace
 
 Result<std::unique_ptr<Transport>> OpenUsb(const UsbSelector& s) {
+  INSITU_RETURN_IF_ERROR(s.Validate());
   libusb_context* context = nullptr;
   if (const int rc = libusb_init(&context); rc != 0) {
     return Status(StatusCode::kDeviceError,
@@ -80,6 +106,11 @@ Result<std::unique_ptr<Transport>> OpenUsb(const UsbSelector& s) {
   }
   libusb_device** devices = nullptr;
   const ssize_t n = libusb_get_device_list(context, &devices);
+  if (n < 0) {
+    libusb_exit(context);
+    return Status(StatusCode::kDeviceError, std::string("libusb cannot list the USB devices: ") +
+                                                libusb_error_name(static_cast<int>(n)));
+  }
   const std::string wanted = Hex4(s.vid) + ":" + Hex4(s.pid);
   std::string seen;
   libusb_device* chosen = nullptr;
