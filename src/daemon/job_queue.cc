@@ -42,6 +42,7 @@ Result<Submitted> JobQueue::Submit(job::LoadedJob job) {
     return record.status();
   }
   busy_ = true;
+  finished_ = false;
   cancel_ = false;
   running_id_ = record->id;
   running_kind_ = record->job;
@@ -55,6 +56,9 @@ Result<Submitted> JobQueue::Submit(job::LoadedJob job) {
 
 Result<std::string> JobQueue::Cancel(const std::string& id) {
   std::lock_guard<std::mutex> lock(mutex_);
+  if (busy_ && finished_ && (id.empty() || id == running_id_)) {
+    return FailedPrecondition("job " + running_id_ + " has just ended");
+  }
   if (busy_ && (id.empty() || id == running_id_)) {
     cancel_ = true;
     return running_id_;
@@ -146,6 +150,7 @@ void JobQueue::Work() {
       continue;
     }
     cancel_ = false;
+    finished_ = false;
     running_id_ = queue_.front().record.id;
     running_kind_ = queue_.front().record.job;
     emit_("job", {{"job_id", running_id_}, {"job", running_kind_}, {"status", "running"}});
@@ -168,6 +173,10 @@ void JobQueue::RunOne(const Entry& entry) {
   };
   Logger("daemon")->info("job {} ({}) starts", rec.id, rec.job);
   const auto report = job::RunJob(entry.job, run);
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    finished_ = true;  // a cancel from now on has nothing to stop
+  }
   const bool cancelled =
       cancel_.load() || (!report.ok() && report.status().code() == StatusCode::kCancelled);
   const std::string status = report.ok() && report->ok ? "done"

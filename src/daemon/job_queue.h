@@ -81,6 +81,7 @@ class JobQueue {
   std::condition_variable wake_;
   std::deque<Entry> queue_;
   bool busy_ = false;  // a job is running (or about to, on the worker)
+  bool finished_ = false;  // ... or has just ended, its outcome being recorded
   bool stopping_ = false;
   std::string running_id_, running_kind_;
   nlohmann::json progress_;  // the running job's last progress event, or null
