@@ -1,12 +1,11 @@
 #include "insitu/sim/world.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <thread>
-
-#include <Eigen/Dense>
 
 #include "insitu/core/log.h"
 #include "insitu/fit/extension.h"
@@ -17,8 +16,8 @@
 namespace insitu::sim {
 namespace {
 
-constexpr double kPlanck = 6.62607015e-34;      // J s
-constexpr double kLightSpeed = 299792458.0;     // m / s
+constexpr double kPlanck = 6.62607015e-34;   // J s
+constexpr double kLightSpeed = 299792458.0;  // m / s
 // Photons per second per m^2 per lux of white (LED, ~4000 K) light: 1 lux ~ 3.3 mW/m^2 at a
 // mean photon energy of 3.6e-19 J.
 constexpr double kWhitePhotonsPerLuxSecondM2 = 9.0e15;
@@ -48,7 +47,8 @@ SimWorld::SimWorld(const WorldOptions& options)
   camera_binned_ = std::make_unique<CameraModel>(options.camera);
   marks_ = std::make_unique<MarkMap>();
   std::vector<fit::EffectParams> effects;
-  for (const FieldEffectOption& e : options.scan_head.field_effects) effects.push_back({e.name, e.params});
+  for (const FieldEffectOption& e : options.scan_head.field_effects)
+    effects.push_back({e.name, e.params});
   auto ext = fit::ModelExtension::Make(effects);  // valid: WorldOptions::Validate() checked it
   field_effects_ = std::make_unique<fit::ModelExtension>(ext.ok() ? *ext : fit::ModelExtension());
   scene_->SetBoard(options.board, -1);
@@ -221,126 +221,151 @@ Status SimWorld::ExecuteMarkingList(const std::vector<ListMove>& moves, const Ma
         std::abs(m.to_in_galvo.z()) > sh.focus_range_mm || !CommandToAngles(m.to_in_galvo, &a)) {
       return OutOfRange("list point (" + std::to_string(m.to_in_galvo.x()) + ", " +
                         std::to_string(m.to_in_galvo.y()) + ", " +
-                        std::to_string(m.to_in_galvo.z()) + ") mm is outside the field or focus range");
+                        std::to_string(m.to_in_galvo.z()) +
+                        ") mm is outside the field or focus range");
     }
   }
   const double tick = sh.clock_us * 1e-6;
   const auto ticks_of = [&](double us) { return static_cast<int>(std::llround(us * 1e-6 / tick)); };
 
-  // 1. The command on the head's clock: position and laser state per tick.
+  // 1. The command on the head's clock, one move at a time: position and laser state per tick.
+  // A move's ticks are final once the next move starts (the laser delays reach only into their
+  // own move's ticks), so a list is never held whole at one entry per 10 us.
   struct Tick {
     Eigen::Vector3d command;
     bool laser = false;
   };
-  std::vector<Tick> timeline;
-  Eigen::Vector3d at = last_command_;
-  int laser_off_at = -1;  // tick index at which a pending laser-off happens
-  for (size_t i = 0; i < moves.size(); ++i) {
+  const double tau = sh.tracking_lag_ms * 1e-3;
+  const int settle = static_cast<int>(std::ceil(10.0 * tau / tick));
+  struct Cursor {
+    Eigen::Vector3d at;
+    int64_t laser_off_at = -1;  // list tick at which a pending laser-off happens
+  };
+  // Move i's ticks (i == moves.size(): the mirrors settling with the laser off at the end),
+  // the first of them at list tick `base`.
+  const auto emit = [&](size_t i, int64_t base, Cursor* c, std::vector<Tick>* out) {
+    out->clear();
+    const auto end = [&] { return base + static_cast<int64_t>(out->size()); };
+    if (i == moves.size()) {
+      for (int k = 0; k < settle; ++k) out->push_back({c->at, c->laser_off_at > end()});
+      return;
+    }
     const ListMove& m = moves[i];
     const bool mark = m.kind == ListMove::Kind::kMark;
     const bool starts_sequence = mark && (i == 0 || moves[i - 1].kind != ListMove::Kind::kMark);
-    const bool ends_sequence = mark && (i + 1 == moves.size() || moves[i + 1].kind != ListMove::Kind::kMark);
+    const bool ends_sequence =
+        mark && (i + 1 == moves.size() || moves[i + 1].kind != ListMove::Kind::kMark);
     const double speed = mark ? p.mark_speed_mm_per_s : p.jump_speed_mm_per_s;
-    const int n = std::max(1, static_cast<int>(std::ceil((m.to_in_galvo - at).norm() / (speed * tick))));
-    const size_t first = timeline.size();
+    const int n =
+        std::max(1, static_cast<int>(std::ceil((m.to_in_galvo - c->at).norm() / (speed * tick))));
     for (int k = 1; k <= n; ++k) {
-      timeline.push_back({at + (m.to_in_galvo - at) * (static_cast<double>(k) / n), mark});
+      out->push_back({c->at + (m.to_in_galvo - c->at) * (static_cast<double>(k) / n), mark});
     }
     if (starts_sequence) {
       // The laser comes on laser_on_delay after the sequence's first mark starts.
-      const size_t on = std::min(timeline.size(), first + ticks_of(p.laser_on_delay_us));
-      for (size_t k = first; k < on; ++k) timeline[k].laser = false;
+      const size_t on = std::min(out->size(), static_cast<size_t>(ticks_of(p.laser_on_delay_us)));
+      for (size_t k = 0; k < on; ++k) (*out)[k].laser = false;
     }
-    at = m.to_in_galvo;
+    c->at = m.to_in_galvo;
     if (ends_sequence) {
       const int hold = ticks_of(p.mark_delay_us);
-      for (int k = 0; k < hold; ++k) timeline.push_back({at, false});
-      laser_off_at = static_cast<int>(timeline.size() - hold) + ticks_of(p.laser_off_delay_us);
+      for (int k = 0; k < hold; ++k) out->push_back({c->at, false});
+      const int64_t reached = end() - hold;
+      c->laser_off_at = reached + ticks_of(p.laser_off_delay_us);
       // The laser stays on for laser_off_delay after the command reached the end.
-      for (int k = static_cast<int>(timeline.size() - hold);
-           k < laser_off_at && k < static_cast<int>(timeline.size()); ++k) {
-        timeline[k].laser = true;
-      }
+      for (int64_t k = reached; k < c->laser_off_at && k < end(); ++k)
+        (*out)[k - base].laser = true;
     }
     if (!mark) {
-      for (int k = 0, hold = ticks_of(p.jump_delay_us); k < hold; ++k) timeline.push_back({at, false});
-      // A laser-off delay running into the jump keeps the laser on during it.
-      for (int k = static_cast<int>(first); k < laser_off_at && k < static_cast<int>(timeline.size()); ++k) {
-        timeline[k].laser = true;
+      for (int k = 0, hold = ticks_of(p.jump_delay_us); k < hold; ++k) {
+        out->push_back({c->at, false});
       }
+      // A laser-off delay running into the jump keeps the laser on during it.
+      for (int64_t k = base; k < c->laser_off_at && k < end(); ++k) (*out)[k - base].laser = true;
     }
-  }
-  // Let the mirrors settle with the laser off.
-  const double tau = sh.tracking_lag_ms * 1e-3;
-  for (int k = 0, settle = static_cast<int>(std::ceil(10.0 * tau / tick)); k < settle; ++k) {
-    timeline.push_back({at, laser_off_at > static_cast<int>(timeline.size())});
+  };
+  // The list's length, for progress and the abort record: the moves generated once, counted.
+  std::vector<Tick> ticks;
+  int64_t total = 0;
+  {
+    Cursor c{last_command_};
+    for (size_t i = 0; i <= moves.size(); ++i) {
+      emit(i, total, &c, &ticks);
+      total += static_cast<int64_t>(ticks.size());
+    }
   }
 
   // 2. The mirrors follow with their lag; pulses fire at the pulse rate while the laser is on.
   const BeamOptions& beam = sh.marking;
   const double w0 = 0.5 * beam.waist_diameter_mm;
   const double rayleigh = M_PI * w0 * w0 / (beam.m2 * beam.wavelength_nm * 1e-6);
-  const double pulse_energy_j = beam.power_mw * 1e-3 * p.power_fraction / (p.pulse_frequency_khz * 1e3);
+  const double pulse_energy_j =
+      beam.power_mw * 1e-3 * p.power_fraction / (p.pulse_frequency_khz * 1e3);
   const double pulse_period = 1.0 / (p.pulse_frequency_khz * 1e3);
   const double alpha = tau > 0 ? 1.0 - std::exp(-tick / tau) : 1.0;
   MirrorAngles actual = rest_angles_;
   double t = 0.0, next_pulse = 0.0;
   bool was_on = false;
-  const double list_s = static_cast<double>(timeline.size()) * tick;
-  const int pace_every = std::max(1, static_cast<int>(std::lround(1e-3 / tick)));       // 1 ms
-  const int report_every = std::max(1, static_cast<int>(std::lround(0.1 / tick)));      // 100 ms
-  for (size_t i = 0; i < timeline.size(); ++i) {
-    const Tick& k = timeline[i];
-    if (abort != nullptr && abort->load(std::memory_order_relaxed)) {
-      // The laser goes off on this tick; the mirrors hold where the command was.
-      last_abort_ = {true, now_s_, now_s_ + list_s, now_s_ + t, std::chrono::steady_clock::now()};
-      now_s_ += t;
-      last_command_ = k.command;
-      rest_angles_ = actual;
-      char done[96];
-      std::snprintf(done, sizeof done, "list aborted after %.1f of %.1f ms; laser off", t * 1e3,
-                    list_s * 1e3);
-      return Status(StatusCode::kCancelled, done);
-    }
-    if (i % pace_every == 0) PaceTo(now_s_ + t);
-    if (progress && i > 0 && i % report_every == 0) progress(t / list_s);
-    MirrorAngles cmd;
-    CommandToAngles(k.command, &cmd);
-    actual.x_rad += alpha * (cmd.x_rad - actual.x_rad);
-    actual.y_rad += alpha * (cmd.y_rad - actual.y_rad);
-    t += tick;
-    if (!k.laser) {
-      was_on = false;
-      continue;
-    }
-    ++laser_on_ticks_;
-    if (!was_on) next_pulse = t;  // the pulse train starts with the laser
-    was_on = true;
-    for (; next_pulse <= t; next_pulse += pulse_period) {
-      const ChiefRay ray = true_optics_->Trace(actual);
-      const Eigen::Vector3d start = ray.AtHeight(scene_->stage_z() + kTraceStartHeightMm);
-      Hit hit;
-      if (!scene_->Intersect(start, -ray.up, 5000.0, &hit)) continue;
-      MarkPulse pulse;
-      pulse.t_s = now_s_ + next_pulse;
-      pulse.point_in_world = hit.point_in_world;
-      pulse.on_part = hit.on_part;
-      pulse.defocus_mm = (k.command.z() - hit.point_in_world.z()) / ray.up.z();
-      const double w_mm = w0 * std::sqrt(1.0 + std::pow(pulse.defocus_mm / rayleigh, 2));
-      // Peak fluence of a Gaussian pulse, J/cm^2: 2 E / (pi w^2), w in cm.
-      const double f0 = 2.0 * pulse_energy_j / (M_PI * std::pow(w_mm * 0.1, 2));
-      const double threshold = hit.on_part ? options_.part.ablation_threshold_j_per_cm2
-                                           : options_.stage.plate_ablation_threshold_j_per_cm2;
-      pulse.diameter_mm = f0 > threshold ? w_mm * std::sqrt(2.0 * std::log(f0 / threshold)) : 0.0;
-      pulse.beam_radius_mm = w_mm;
-      marks_->AddCrater(hit.point_in_world.x(), hit.point_in_world.y(), 0.5 * pulse.diameter_mm,
-                        w_mm, options_.part.ablation_depth_um);
-      if (pulse.diameter_mm > 0) ambient_valid_ = false;  // the cameras see the new marks
-      pulses_.push_back(pulse);
+  const double list_s = static_cast<double>(total) * tick;
+  const int64_t pace_every = std::max<int64_t>(1, std::llround(1e-3 / tick));   // 1 ms
+  const int64_t report_every = std::max<int64_t>(1, std::llround(0.1 / tick));  // 100 ms
+  Cursor cursor{last_command_};
+  int64_t i = 0;  // list tick
+  for (size_t move = 0; move <= moves.size(); ++move) {
+    emit(move, i, &cursor, &ticks);
+    for (const Tick& k : ticks) {
+      ++i;
+      if (abort != nullptr && abort->load(std::memory_order_relaxed)) {
+        // The laser goes off on this tick; the mirrors hold where the command was.
+        last_abort_ = {true, now_s_, now_s_ + list_s, now_s_ + t, std::chrono::steady_clock::now()};
+        now_s_ += t;
+        last_command_ = k.command;
+        rest_angles_ = actual;
+        char done[96];
+        std::snprintf(done, sizeof done, "list aborted after %.1f of %.1f ms; laser off", t * 1e3,
+                      list_s * 1e3);
+        return Status(StatusCode::kCancelled, done);
+      }
+      if ((i - 1) % pace_every == 0) PaceTo(now_s_ + t);
+      if (progress && i > 1 && (i - 1) % report_every == 0) progress(t / list_s);
+      MirrorAngles cmd;
+      CommandToAngles(k.command, &cmd);
+      actual.x_rad += alpha * (cmd.x_rad - actual.x_rad);
+      actual.y_rad += alpha * (cmd.y_rad - actual.y_rad);
+      t += tick;
+      if (!k.laser) {
+        was_on = false;
+        continue;
+      }
+      ++laser_on_ticks_;
+      if (!was_on) next_pulse = t;  // the pulse train starts with the laser
+      was_on = true;
+      for (; next_pulse <= t; next_pulse += pulse_period) {
+        const ChiefRay ray = true_optics_->Trace(actual);
+        const Eigen::Vector3d start = ray.AtHeight(scene_->stage_z() + kTraceStartHeightMm);
+        Hit hit;
+        if (!scene_->Intersect(start, -ray.up, 5000.0, &hit)) continue;
+        MarkPulse pulse;
+        pulse.t_s = now_s_ + next_pulse;
+        pulse.point_in_world = hit.point_in_world;
+        pulse.on_part = hit.on_part;
+        pulse.defocus_mm = (k.command.z() - hit.point_in_world.z()) / ray.up.z();
+        const double w_mm = w0 * std::sqrt(1.0 + std::pow(pulse.defocus_mm / rayleigh, 2));
+        // Peak fluence of a Gaussian pulse, J/cm^2: 2 E / (pi w^2), w in cm.
+        const double f0 = 2.0 * pulse_energy_j / (M_PI * std::pow(w_mm * 0.1, 2));
+        const double threshold = hit.on_part ? options_.part.ablation_threshold_j_per_cm2
+                                             : options_.stage.plate_ablation_threshold_j_per_cm2;
+        pulse.diameter_mm = f0 > threshold ? w_mm * std::sqrt(2.0 * std::log(f0 / threshold)) : 0.0;
+        pulse.beam_radius_mm = w_mm;
+        marks_->AddCrater(hit.point_in_world.x(), hit.point_in_world.y(), 0.5 * pulse.diameter_mm,
+                          w_mm, options_.part.ablation_depth_um);
+        if (pulse.diameter_mm > 0) ambient_valid_ = false;  // the cameras see the new marks
+        pulses_.push_back(pulse);
+      }
     }
   }
   now_s_ += t;
-  last_command_ = at;
+  last_command_ = cursor.at;
   rest_angles_ = actual;
   PaceTo(now_s_);
   if (progress) progress(1.0);
@@ -438,41 +463,43 @@ Result<Frame> SimWorld::Grab() {
     ambient_e_per_s_.assign(static_cast<size_t>(w) * h, 0.0f);
     const double qe = cam_opts.quantum_efficiency;
     ParallelRows(h, [&](int v_begin, int v_end) {
-    for (int v = v_begin; v < v_end; ++v) {
-      for (int u = 0; u < w; ++u) {
-        const Eigen::Vector2d px(u, v);
-        const Eigen::Vector3d dir = cam.PixelRayInWorld(px);
-        Hit hit;
-        if (!scene_->Intersect(cam.center_in_world(), dir, 5000.0, &hit)) continue;
-        double albedo = hit.albedo;
-        // A printed pattern's edge inside the pixel: average 4 x 4 sub-pixel rays, so the
-        // image carries the true area fraction and not an aliased step.
-        const double footprint_mm = hit.t * cam_opts.pixel_pitch_um * 1e-3 /
-                                    cam_opts.lens_focal_length_mm;
-        if (hit.on_board && scene_->BoardEdgeDistance(hit.point_in_world) < 1.5 * footprint_mm) {
-          double sum = 0.0;
-          for (int sy = 0; sy < 4; ++sy) {
-            for (int sx = 0; sx < 4; ++sx) {
-              const Eigen::Vector2d sub(u - 0.375 + 0.25 * sx, v - 0.375 + 0.25 * sy);
-              Hit sh;
-              if (scene_->Intersect(cam.center_in_world(), cam.PixelRayInWorld(sub), 5000.0, &sh)) {
-                sum += sh.albedo;
+      for (int v = v_begin; v < v_end; ++v) {
+        for (int u = 0; u < w; ++u) {
+          const Eigen::Vector2d px(u, v);
+          const Eigen::Vector3d dir = cam.PixelRayInWorld(px);
+          Hit hit;
+          if (!scene_->Intersect(cam.center_in_world(), dir, 5000.0, &hit)) continue;
+          double albedo = hit.albedo;
+          // A printed pattern's edge inside the pixel: average 4 x 4 sub-pixel rays, so the
+          // image carries the true area fraction and not an aliased step.
+          const double footprint_mm =
+              hit.t * cam_opts.pixel_pitch_um * 1e-3 / cam_opts.lens_focal_length_mm;
+          if (hit.on_board && scene_->BoardEdgeDistance(hit.point_in_world) < 1.5 * footprint_mm) {
+            double sum = 0.0;
+            for (int sy = 0; sy < 4; ++sy) {
+              for (int sx = 0; sx < 4; ++sx) {
+                const Eigen::Vector2d sub(u - 0.375 + 0.25 * sx, v - 0.375 + 0.25 * sy);
+                Hit sh;
+                if (scene_->Intersect(cam.center_in_world(), cam.PixelRayInWorld(sub), 5000.0,
+                                      &sh)) {
+                  sum += sh.albedo;
+                }
               }
             }
+            albedo = sum / 16.0;
           }
-          albedo = sum / 16.0;
+          if (!hit.on_board) {
+            albedo *=
+                MarkFactor(hit.point_in_world.x(), hit.point_in_world.y(), 0.5 * footprint_mm);
+          }
+          // Diffuse room light from above: surfaces facing up get all of it, walls half.
+          const double shade = 0.5 + 0.5 * std::max(0.0, hit.normal.z());
+          const double sensor_lux =
+              albedo * light.ambient_lux * shade * aperture / M_PI * cam.Cos4(px);
+          ambient_e_per_s_[static_cast<size_t>(v) * w + u] =
+              static_cast<float>(sensor_lux * pixel_area_m2 * kWhitePhotonsPerLuxSecondM2 * qe);
         }
-        if (!hit.on_board) {
-          albedo *= MarkFactor(hit.point_in_world.x(), hit.point_in_world.y(), 0.5 * footprint_mm);
-        }
-        // Diffuse room light from above: surfaces facing up get all of it, walls half.
-        const double shade = 0.5 + 0.5 * std::max(0.0, hit.normal.z());
-        const double sensor_lux = albedo * light.ambient_lux * shade * aperture / M_PI *
-                                  cam.Cos4(px);
-        ambient_e_per_s_[static_cast<size_t>(v) * w + u] =
-            static_cast<float>(sensor_lux * pixel_area_m2 * kWhitePhotonsPerLuxSecondM2 * qe);
       }
-    }
     });
     ambient_stage_z_ = scene_->stage_z();
     ambient_binning_ = binning_;
@@ -519,16 +546,16 @@ Result<Frame> SimWorld::Grab() {
       // tangent coordinates), covariance (w^2/4) M^-1 = (w^2/4)(I + g g^T / (n.d)^2).
       const Eigen::Vector3d d = -ray.up;
       const Eigen::Vector3d& n = hit.normal;
-      Eigen::Vector3d t1v = n.cross(std::abs(n.z()) < 0.9 ? Eigen::Vector3d::UnitZ()
-                                                          : Eigen::Vector3d::UnitX());
+      Eigen::Vector3d t1v =
+          n.cross(std::abs(n.z()) < 0.9 ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitX());
       t1v.normalize();
       const Eigen::Vector3d t2v = n.cross(t1v);
       const double cos_inc = std::abs(n.dot(d));
       if (cos_inc < 1e-3) continue;
       const Eigen::Vector2d g(t1v.dot(d), t2v.dot(d));
       const Eigen::Matrix2d sigma_s =
-          (w_mm * w_mm / 4.0) * (Eigen::Matrix2d::Identity() + g * g.transpose() /
-                                                                   (cos_inc * cos_inc));
+          (w_mm * w_mm / 4.0) *
+          (Eigen::Matrix2d::Identity() + g * g.transpose() / (cos_inc * cos_inc));
       const Eigen::Matrix<double, 2, 3> j3 = cam.ProjectJacobian(p);
       Eigen::Matrix2d j2;
       j2.col(0) = j3 * t1v;
@@ -540,8 +567,8 @@ Result<Frame> SimWorld::Grab() {
       const double w_m = w_mm * 1e-3;
       const double radiance = hit.albedo / M_PI * 2.0 * power_w / (M_PI * w_m * w_m) * cos_inc *
                               std::sqrt(sigma_geom.determinant() / sigma.determinant());
-      const double electrons_peak = radiance * aperture * cam.Cos4(p0) * pixel_area_m2 *
-                                    s.dt_s * cam_opts.quantum_efficiency / photon_j;
+      const double electrons_peak = radiance * aperture * cam.Cos4(p0) * pixel_area_m2 * s.dt_s *
+                                    cam_opts.quantum_efficiency / photon_j;
       truth_.beam_pixels.push_back(p0);
       truth_.beam_points_in_world.push_back(p);
       const double reach_u = 4.0 * std::sqrt(sigma(0, 0)), reach_v = 4.0 * std::sqrt(sigma(1, 1));
@@ -563,11 +590,10 @@ Result<Frame> SimWorld::Grab() {
 
   // Speckle, then photon and read noise, then the ADC.
   const uint64_t frame_seed = SplitMix64(options_.seed * 0x9E3779B97F4A7C15ull + frame_counter_);
-  const double grain_px =
-      light.speckle_grain_px > 0
-          ? light.speckle_grain_px
-          : 1.22 * options_.scan_head.pointer.wavelength_nm * 1e-9 * cam_opts.f_number /
-                (cam_opts.pixel_pitch_um * 1e-6);
+  const double grain_px = light.speckle_grain_px > 0
+                              ? light.speckle_grain_px
+                              : 1.22 * options_.scan_head.pointer.wavelength_nm * 1e-9 *
+                                    cam_opts.f_number / (cam_opts.pixel_pitch_um * 1e-6);
   float stripe_max = 0.0f;
   for (float e : stripe) stripe_max = std::max(stripe_max, e);
   truth_.peak_electrons = stripe_max;
@@ -588,28 +614,28 @@ Result<Frame> SimWorld::Grab() {
   const float speckle_floor = stripe_max * 1e-3f;
   const int max_dn = frame.max_value();
   ParallelRows(h, [&](int v_begin, int v_end) {
-  for (int v = v_begin; v < v_end; ++v) {
-    NoiseSource noise(frame_seed ^ SplitMix64(static_cast<uint64_t>(v)));
-    const size_t row = static_cast<size_t>(v) * w;
-    for (int u = 0; u < w; ++u) {
-      double e = ambient_e_per_s_[row + u] * exposure_s + dark_e;
-      const float s = stripe[row + u];
-      if (s > speckle_floor && light.speckle_contrast > 0) {
-        e += s * SpeckleFactor(u, v, grain_px, light.speckle_contrast, frame_seed);
-      } else {
-        e += s;
-      }
-      if (cam_opts.noise) e = noise.ShotAndRead(e, read_var);
-      e = std::min(e, full_well);
-      const int dn = std::clamp(static_cast<int>(e * dn_per_e + 0.5), 0, max_dn);
-      if (frame.bit_depth > 8) {
-        frame.bytes[2 * (row + u)] = static_cast<uint8_t>(dn & 0xFF);
-        frame.bytes[2 * (row + u) + 1] = static_cast<uint8_t>(dn >> 8);
-      } else {
-        frame.bytes[row + u] = static_cast<uint8_t>(dn);
+    for (int v = v_begin; v < v_end; ++v) {
+      NoiseSource noise(frame_seed ^ SplitMix64(static_cast<uint64_t>(v)));
+      const size_t row = static_cast<size_t>(v) * w;
+      for (int u = 0; u < w; ++u) {
+        double e = ambient_e_per_s_[row + u] * exposure_s + dark_e;
+        const float s = stripe[row + u];
+        if (s > speckle_floor && light.speckle_contrast > 0) {
+          e += s * SpeckleFactor(u, v, grain_px, light.speckle_contrast, frame_seed);
+        } else {
+          e += s;
+        }
+        if (cam_opts.noise) e = noise.ShotAndRead(e, read_var);
+        e = std::min(e, full_well);
+        const int dn = std::clamp(static_cast<int>(e * dn_per_e + 0.5), 0, max_dn);
+        if (frame.bit_depth > 8) {
+          frame.bytes[2 * (row + u)] = static_cast<uint8_t>(dn & 0xFF);
+          frame.bytes[2 * (row + u) + 1] = static_cast<uint8_t>(dn >> 8);
+        } else {
+          frame.bytes[row + u] = static_cast<uint8_t>(dn);
+        }
       }
     }
-  }
   });
   now_s_ = t1;
   PaceTo(now_s_);
