@@ -232,6 +232,7 @@ void ReadWorld(ConfigReader& r, sim::WorldOptions* w) {
   st.Read("speed_mm_per_s", &w->stage.speed_mm_per_s);
   st.Read("plate_albedo", &w->stage.plate_albedo);
   st.Read("plate_ablation_threshold_j_per_cm2", &w->stage.plate_ablation_threshold_j_per_cm2);
+  st.Read("plate_marked_reflectance", &w->stage.plate_marked_reflectance);
   st.Read("plate_size_mm", &w->stage.plate_size_mm);
   if (st.ok()) st.FailFromValidate(w->stage.Validate());
 

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -20,9 +21,11 @@ using Affine = Eigen::Affine2d;
 
 // Reads numbers out of SVG attribute text: separators are whitespace and commas, and a sign
 // or a second '.' starts a new number ("1-2.5.5" is 1, -2.5, .5); arc flags may be packed.
+// The reader owns a copy of its text, so it may be built from a temporary (an attribute value)
+// and outlive it.
 class NumberReader {
  public:
-  explicit NumberReader(const std::string& s) : s_(s) {}
+  explicit NumberReader(std::string s) : s_(std::move(s)) {}
   void SkipSeparators() {
     while (i_ < s_.size() && (std::isspace(static_cast<unsigned char>(s_[i_])) || s_[i_] == ',')) ++i_;
   }
@@ -61,7 +64,7 @@ class NumberReader {
   size_t position() const { return i_; }
 
  private:
-  const std::string& s_;
+  std::string s_;
   size_t i_ = 0;
 };
 

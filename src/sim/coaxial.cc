@@ -97,7 +97,7 @@ Result<Frame> SimWorld::GrabCoaxial(double exposure_us) {
           const bool on_part = top > 0.0;
           const double albedo = on_part ? options_.part.albedo : options_.stage.plate_albedo;
           const size_t i = static_cast<size_t>(v) * w + u;
-          reflectance[i] = static_cast<float>(albedo * MarkFactor(p.x(), p.y(), 0.5 * px_mm));
+          reflectance[i] = static_cast<float>(albedo * MarkFactor(p.x(), p.y(), 0.5 * px_mm, on_part));
           const double dz = std::abs(focus_z - (plate_z + top)) / ray.up.z();
           defocus_px[i] = static_cast<float>(0.5 * o.numerical_aperture * dz / px_mm);
         }

@@ -377,12 +377,12 @@ Status SimWorld::MoveHead(const Eigen::Vector3d& point_in_galvo) {
   return ExecuteMarkingList({{ListMove::Kind::kJump, point_in_galvo}}, MarkingParams{});
 }
 
-double SimWorld::MarkFactor(double x, double y, double half) const {
+double SimWorld::MarkFactor(double x, double y, double half, bool on_part) const {
   if (marks_->empty()) return 1.0;
   const PartOptions& po = options_.part;
+  const double marked = on_part ? po.marked_reflectance : options_.stage.plate_marked_reflectance;
   const auto factor = [&](double depth_um) {
-    return po.marked_reflectance +
-           (1.0 - po.marked_reflectance) * std::exp(-depth_um / po.darkening_depth_um);
+    return marked + (1.0 - marked) * std::exp(-depth_um / po.darkening_depth_um);
   };
   double x0, y0, x1, y1;
   marks_->Bounds(&x0, &y0, &x1, &y1);
@@ -490,7 +490,8 @@ Result<Frame> SimWorld::Grab() {
           }
           if (!hit.on_board) {
             albedo *=
-                MarkFactor(hit.point_in_world.x(), hit.point_in_world.y(), 0.5 * footprint_mm);
+                MarkFactor(hit.point_in_world.x(), hit.point_in_world.y(), 0.5 * footprint_mm,
+                           hit.on_part);
           }
           // Diffuse room light from above: surfaces facing up get all of it, walls half.
           const double shade = 0.5 + 0.5 * std::max(0.0, hit.normal.z());

@@ -156,6 +156,9 @@ Status StageOptions::Validate() const {
   if (!(z_mm >= min_z_mm && z_mm <= max_z_mm)) return Bad("z_mm", "within the travel", z_mm);
   if (!Positive(speed_mm_per_s)) return Bad("speed_mm_per_s", "> 0", speed_mm_per_s);
   if (!(plate_albedo >= 0 && plate_albedo <= 1)) return Bad("plate_albedo", "in [0, 1]", plate_albedo);
+  if (!(plate_marked_reflectance >= 0 && plate_marked_reflectance * plate_albedo <= 1)) {
+    return Bad("plate_marked_reflectance", "in [0, 1 / plate_albedo]", plate_marked_reflectance);
+  }
   return Status::Ok();
 }
 

@@ -101,6 +101,31 @@ TEST(Svg, OutlinesWithoutFillAreNotAreas) {
   EXPECT_EQ(Outline(*p).size(), 4u);
 }
 
+// The points attribute is read from the element's own text (the reader once kept a reference to
+// a temporary copy of it, and real files with 4-10 pairs were refused). A 30 x 20 triangle and a
+// three-segment polyline, as design tools write them (commas, spaces and newlines mixed).
+TEST(Svg, PolygonAndPolylinePoints) {
+  auto p = ParseSvg(Svg("<polygon points=\"10,10 40,10\n 40,30\"/>"
+                        "<polyline fill=\"none\" points=\"0 0, 3 4 3,8 0 8\"/>"),
+                    "pp.svg");
+  ASSERT_TRUE(p.ok()) << p.status().ToString();
+  ASSERT_EQ(p->paths.size(), 2u);
+  EXPECT_TRUE(p->paths[0].closed);
+  ASSERT_EQ(p->paths[0].points.size(), 3u);
+  EXPECT_NEAR(p->paths[0].points[2].x(), 40.0, 1e-12);
+  EXPECT_NEAR(p->paths[0].points[2].y(), -30.0, 1e-12);
+  EXPECT_NEAR(HatchedArea(*p, 0.02), 300.0, 3.0);  // 30 x 20 / 2, +- a line along each edge
+  EXPECT_FALSE(p->paths[1].closed);
+  double length = 0;
+  const auto& q = p->paths[1].points;
+  for (size_t i = 1; i < q.size(); ++i) length += (q[i] - q[i - 1]).norm();
+  EXPECT_NEAR(length, 5.0 + 4.0 + 3.0, 1e-12);
+  // A long points list: 10 pairs.
+  auto big = ParseSvg(Svg("<polygon points=\"0,0 1,0 2,0 3,0 4,0 4,4 3,4 2,4 1,4 0,4\"/>"), "b.svg");
+  ASSERT_TRUE(big.ok()) << big.status().ToString();
+  EXPECT_EQ(big->paths[0].points.size(), 10u);
+}
+
 TEST(Svg, BadFilesAreNamed) {
   auto xml = ParseSvg("<svg><rect></svg>", "x.svg");
   ASSERT_FALSE(xml.ok());

@@ -176,7 +176,8 @@ class SimWorld {
   void PointerSamples(double t0, double t1, std::vector<BeamSample>* samples) const;
   // Reflectance of the marked surface relative to the bare one at a world xy, averaged over a
   // square of half-size `half_mm` (a camera pixel's footprint); 1 where nothing was marked.
-  double MarkFactor(double x_mm, double y_mm, double half_mm) const;
+  // `on_part`: the part's material, else the stage plate's.
+  double MarkFactor(double x_mm, double y_mm, double half_mm, bool on_part) const;
   Eigen::Vector3d PointerCommandAt(double t) const;
   // With options.real_time_factor > 0, sleeps until the wall clock has caught up with virtual
   // time `t` (scaled). A stretch where the simulation ran slower than that re-anchors instead

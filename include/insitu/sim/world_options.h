@@ -167,6 +167,10 @@ struct StageOptions {
   double speed_mm_per_s = 10.0;
   double plate_albedo = 0.12;     // black anodised aluminium
   double plate_ablation_threshold_j_per_cm2 = 0.5;  // anodised layer, ns pulses at 1064 nm
+  // Reflectance of a deep mark relative to the bare plate: ablating the black anodised layer
+  // bares the aluminium (diffuse reflectance ~0.5 against 0.12), so marks show light on dark.
+  // Same depth law as the part's marked_reflectance.
+  double plate_marked_reflectance = 4.0;
   double plate_size_mm = 400.0;
 
   Status Validate() const;
