@@ -88,6 +88,10 @@ void ReadOptics(ConfigReader& r, sim::ScanOpticsGeometry* g) {
   r.Read("exit_pupil_height_mm", &g->exit_pupil_height_mm);
   r.Read("pupil_aberration", &g->pupil_aberration);
   r.Read("telecentric", &g->telecentric);
+  r.Read("ftheta_c3", &g->ftheta_c3);
+  r.Read("ftheta_c5", &g->ftheta_c5);
+  r.Read("x_axis_tilt_mrad", &g->x_axis_tilt_mrad);
+  r.Read("y_axis_tilt_mrad", &g->y_axis_tilt_mrad);
   if (r.ok()) r.FailFromValidate(g->Validate());
 }
 
@@ -96,6 +100,9 @@ void ReadBeam(ConfigReader& r, sim::BeamOptions* b) {
   r.Read("power_mw", &b->power_mw);
   r.Read("waist_diameter_mm", &b->waist_diameter_mm);
   r.Read("m2", &b->m2);
+  r.Read("offset_x_mrad", &b->offset_x_mrad);
+  r.Read("offset_y_mrad", &b->offset_y_mrad);
+  r.Read("lateral_colour_pct", &b->lateral_colour_pct);
   if (r.ok()) r.FailFromValidate(b->Validate());
 }
 

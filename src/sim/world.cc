@@ -341,7 +341,7 @@ Status SimWorld::ExecuteMarkingList(const std::vector<ListMove>& moves, const Ma
       if (!was_on) next_pulse = t;  // the pulse train starts with the laser
       was_on = true;
       for (; next_pulse <= t; next_pulse += pulse_period) {
-        const ChiefRay ray = true_optics_->Trace(actual);
+        const ChiefRay ray = true_optics_->Trace(actual, options_.scan_head.marking.Path());
         const Eigen::Vector3d start = ray.AtHeight(scene_->stage_z() + kTraceStartHeightMm);
         Hit hit;
         if (!scene_->Intersect(start, -ray.up, 5000.0, &hit)) continue;
@@ -525,8 +525,11 @@ Result<Frame> SimWorld::Grab() {
     const double blur_var = diffraction_px * diffraction_px + 1.0 / 12.0;
     const Eigen::Vector3d cam_center = cam.center_in_world();
     truth_.samples = static_cast<int>(samples.size());
+    // The pointer goes through the mirrors the marking laser's correction set: its own
+    // alignment and lateral colour decide where it lands.
+    const optics::BeamPath pointer_path = beam.Path();
     for (const BeamSample& s : samples) {
-      const ChiefRay ray = true_optics_->Trace(s.angles);
+      const ChiefRay ray = true_optics_->Trace(s.angles, pointer_path);
       const Eigen::Vector3d start = ray.AtHeight(scene_->stage_z() + kTraceStartHeightMm);
       Hit hit;
       if (!scene_->Intersect(start, -ray.up, 5000.0, &hit)) continue;

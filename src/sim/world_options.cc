@@ -21,26 +21,12 @@ bool Positive(double v) { return std::isfinite(v) && v > 0.0; }
 
 }  // namespace
 
-Status ScanOpticsGeometry::Validate() const {
-  if (!Positive(focal_length_mm)) return Bad("focal_length_mm", "> 0", focal_length_mm);
-  if (!(mirror_separation_mm >= 0.0 && mirror_separation_mm < 200.0)) {
-    return Bad("mirror_separation_mm", "in [0, 200)", mirror_separation_mm);
-  }
-  if (!Positive(exit_pupil_height_mm)) {
-    return Bad("exit_pupil_height_mm", "> 0", exit_pupil_height_mm);
-  }
-  if (!(std::abs(pupil_aberration) < 1.0)) {
-    return Bad("pupil_aberration", "in (-1, 1)", pupil_aberration);
-  }
-  return Status::Ok();
-}
-
 Status BeamOptions::Validate() const {
   if (!Positive(wavelength_nm)) return Bad("wavelength_nm", "> 0", wavelength_nm);
   if (!(power_mw >= 0.0)) return Bad("power_mw", ">= 0", power_mw);
   if (!Positive(waist_diameter_mm)) return Bad("waist_diameter_mm", "> 0", waist_diameter_mm);
   if (!(m2 >= 1.0)) return Bad("m2", ">= 1", m2);
-  return Status::Ok();
+  return Path().Validate();
 }
 
 Status ScanHeadOptions::Validate() const {

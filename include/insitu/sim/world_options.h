@@ -14,28 +14,25 @@
 #include <vector>
 
 #include "insitu/core/status.h"
+#include "insitu/optics/scan_head.h"
 
 namespace insitu::sim {
 
 // Geometry of a two-mirror scan head with an f-theta (or telecentric) objective.
-struct ScanOpticsGeometry {
-  double focal_length_mm = 255.0;        // f-theta: image height r = f * theta
-  double mirror_separation_mm = 16.0;    // X mirror to Y mirror along the beam
-  double exit_pupil_height_mm = 310.0;   // chief rays leave as if from this height
-  // Exit-pupil (chief-ray) aberration: the apparent source of chief rays moves down with
-  // field angle, L(theta) = L / (1 + pupil_aberration * (theta / 0.2 rad)^2).
-  double pupil_aberration = 0.03;
-  bool telecentric = false;              // chief rays parallel to z
-
-  Status Validate() const;
-};
+using ScanOpticsGeometry = optics::HeadGeometry;
 
 struct BeamOptions {
   double wavelength_nm = 680.0;
   double power_mw = 0.15;
   double waist_diameter_mm = 0.4;  // 1/e^2 diameter at the focus
   double m2 = 1.5;                 // beam quality factor
+  // How this beam goes through the head against the beam the head was designed for (the
+  // marking laser): input misalignment, mrad, and lateral colour, % of image height.
+  double offset_x_mrad = 0.0;
+  double offset_y_mrad = 0.0;
+  double lateral_colour_pct = 0.0;
 
+  optics::BeamPath Path() const { return {offset_x_mrad, offset_y_mrad, lateral_colour_pct}; }
   Status Validate() const;
 };
 
