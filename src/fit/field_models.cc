@@ -1,0 +1,449 @@
+#include "insitu/fit/field_models.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <sstream>
+
+#include <Eigen/Dense>
+#include <ceres/ceres.h>
+
+namespace insitu::fit {
+namespace {
+
+using Eigen::Vector2d;
+using Eigen::Vector3d;
+
+// Grid coordinates are commands: equal within 1 um.
+constexpr double kNodeTolMm = 1e-3;
+
+std::vector<double> DistinctSorted(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  std::vector<double> out;
+  for (double x : v) {
+    if (out.empty() || x - out.back() > kNodeTolMm) out.push_back(x);
+  }
+  return out;
+}
+
+int IndexOf(const std::vector<double>& grid, double x) {
+  const auto it = std::lower_bound(grid.begin(), grid.end(), x - kNodeTolMm);
+  if (it == grid.end() || std::abs(*it - x) > kNodeTolMm) return -1;
+  return static_cast<int>(it - grid.begin());
+}
+
+std::string Mm(double v) {
+  std::ostringstream os;
+  os << v;
+  return os.str();
+}
+
+// Cell and fraction of x in an ascending grid, clamped to the grid (nearest edge beyond it).
+void Locate(const std::vector<double>& g, double x, int* i, double* t) {
+  if (g.size() < 2 || x <= g.front()) {
+    *i = 0;
+    *t = 0.0;
+    return;
+  }
+  if (x >= g.back()) {
+    *i = static_cast<int>(g.size()) - 2;
+    *t = 1.0;
+    return;
+  }
+  *i = static_cast<int>(std::upper_bound(g.begin(), g.end(), x) - g.begin()) - 1;
+  *t = (x - g[*i]) / (g[*i + 1] - g[*i]);
+}
+
+// Parameter vector of the physical fit.
+enum Param { kF, kC3, kC5, kTiltX, kX0, kY0, kPhi, kTx, kTy, kParams };
+const char* const kParamNames[kParams] = {"focal_length_mm", "ftheta_c3",        "ftheta_c5",
+                                          "x_axis_tilt_mrad", "x_zero_offset_mrad",
+                                          "y_zero_offset_mrad", "plate_rotation_mrad",
+                                          "plate_x_mm",        "plate_y_mm"};
+// Reported in mrad where the name says so; the solver works in rad.
+double Reported(int k, double v) {
+  return (k == kTiltX || k == kX0 || k == kY0 || k == kPhi) ? v * 1e3 : v;
+}
+
+// Residual of one target: R(phi) meas + t - spot(cmd), galvo frame, mm.
+struct TargetCost {
+  TargetCost(const optics::HeadGeometry& design, const optics::MirrorAngles& angles,
+             const Vector3d& cmd, const Vector2d& meas)
+      : design_(design), angles_(angles), cmd_(cmd), meas_(meas) {}
+
+  template <typename T>
+  bool operator()(const T* const p, T* residual) const {
+    optics::HeadParamsT<T> h;
+    h.focal_length_mm = p[kF];
+    h.mirror_separation_mm = T(design_.mirror_separation_mm);
+    h.c3 = p[kC3];
+    h.c5 = p[kC5];
+    h.x_axis_tilt_rad = p[kTiltX];
+    h.y_axis_tilt_rad = T(design_.y_axis_tilt_mrad * 1e-3);
+    h.beam_offset_x_rad = T(0);
+    h.beam_offset_y_rad = T(0);
+    h.beam_focal_scale = T(1);
+    h.exit_pupil_height_mm = design_.exit_pupil_height_mm;
+    h.pupil_aberration = design_.pupil_aberration;
+    h.telecentric = design_.telecentric;
+    T xy[2], up[3];
+    optics::TraceChiefRay(h, T(angles_.x_rad) + p[kX0], T(angles_.y_rad) + p[kY0], xy, up);
+    const T z = T(cmd_.z());
+    const T sx = xy[0] + up[0] * z / up[2];
+    const T sy = xy[1] + up[1] * z / up[2];
+    using std::cos;
+    using std::sin;
+    const T c = cos(p[kPhi]), s = sin(p[kPhi]);
+    residual[0] = c * T(meas_.x()) - s * T(meas_.y()) + p[kTx] - sx;
+    residual[1] = s * T(meas_.x()) + c * T(meas_.y()) + p[kTy] - sy;
+    return true;
+  }
+
+  optics::HeadGeometry design_;
+  optics::MirrorAngles angles_;
+  Vector3d cmd_;
+  Vector2d meas_;
+};
+
+// Rotation and translation taking `from` onto `to` in the least-squares sense (2D Procrustes,
+// no scale).
+Eigen::Isometry2d RigidFit(const std::vector<Vector2d>& from, const std::vector<Vector2d>& to) {
+  Vector2d cf = Vector2d::Zero(), ct = Vector2d::Zero();
+  for (size_t i = 0; i < from.size(); ++i) {
+    cf += from[i];
+    ct += to[i];
+  }
+  cf /= static_cast<double>(from.size());
+  ct /= static_cast<double>(to.size());
+  double sxx = 0, sxy = 0;
+  for (size_t i = 0; i < from.size(); ++i) {
+    const Vector2d a = from[i] - cf, b = to[i] - ct;
+    sxx += a.dot(b);
+    sxy += a.x() * b.y() - a.y() * b.x();
+  }
+  const double phi = std::atan2(sxy, sxx);
+  Eigen::Isometry2d t = Eigen::Isometry2d::Identity();
+  t.linear() = Eigen::Rotation2Dd(phi).toRotationMatrix();
+  t.translation() = ct - t.linear() * cf;
+  return t;
+}
+
+}  // namespace
+
+bool FieldModel::CommandFor(const Vector3d& target, Vector3d* cmd) const {
+  Vector2d c = target.head<2>();
+  constexpr double kStep = 1e-4;
+  for (int iter = 0; iter < 40; ++iter) {
+    const Vector2d p = Predict({c.x(), c.y(), target.z()});
+    const Vector2d r = p - target.head<2>();
+    if (!r.allFinite()) return false;
+    if (r.norm() < 1e-7) {
+      *cmd = Vector3d(c.x(), c.y(), target.z());
+      return true;
+    }
+    Eigen::Matrix2d j;
+    j.col(0) = (Predict({c.x() + kStep, c.y(), target.z()}) - p) / kStep;
+    j.col(1) = (Predict({c.x(), c.y() + kStep, target.z()}) - p) / kStep;
+    const Vector2d d = j.fullPivLu().solve(r);
+    if (!d.allFinite()) return false;
+    c -= d;
+  }
+  return false;
+}
+
+Result<BilinearFieldModel> BilinearFieldModel::Fit(const std::vector<GalvoSample>& nodes) {
+  std::vector<double> x, y;
+  for (const GalvoSample& s : nodes) {
+    x.push_back(s.cmd.x());
+    y.push_back(s.cmd.y());
+  }
+  BilinearFieldModel m;
+  m.xs_ = DistinctSorted(x);
+  m.ys_ = DistinctSorted(y);
+  if (m.xs_.size() < 2 || m.ys_.size() < 2) {
+    return InvalidArgument("a bilinear field table needs at least 2 x 2 grid nodes, got " +
+                           std::to_string(m.xs_.size()) + " x " + std::to_string(m.ys_.size()));
+  }
+  const size_t n = m.xs_.size() * m.ys_.size();
+  m.error_.assign(n, Vector2d::Zero());
+  std::vector<int> count(n, 0);
+  for (const GalvoSample& s : nodes) {
+    const int i = IndexOf(m.xs_, s.cmd.x()), j = IndexOf(m.ys_, s.cmd.y());
+    const size_t k = static_cast<size_t>(j) * m.xs_.size() + i;
+    m.error_[k] += s.meas - s.cmd.head<2>();
+    ++count[k];
+  }
+  for (size_t k = 0; k < n; ++k) {
+    if (count[k] == 0) {
+      return InvalidArgument("the field grid has no node at (" + Mm(m.xs_[k % m.xs_.size()]) + ", " +
+                             Mm(m.ys_[k / m.xs_.size()]) + ") mm: it must be complete");
+    }
+    m.error_[k] /= count[k];  // replicates average
+  }
+  return m;
+}
+
+std::string BilinearFieldModel::name() const {
+  return "bilinear " + std::to_string(nx()) + "x" + std::to_string(ny());
+}
+
+Vector2d BilinearFieldModel::ErrorAt(double x, double y) const {
+  int i, j;
+  double tx, ty;
+  Locate(xs_, x, &i, &tx);
+  Locate(ys_, y, &j, &ty);
+  const size_t w = xs_.size();
+  const Vector2d& e00 = error_[j * w + i];
+  const Vector2d& e10 = error_[j * w + i + 1];
+  const Vector2d& e01 = error_[(j + 1) * w + i];
+  const Vector2d& e11 = error_[(j + 1) * w + i + 1];
+  return (1 - ty) * ((1 - tx) * e00 + tx * e10) + ty * ((1 - tx) * e01 + tx * e11);
+}
+
+Vector2d BilinearFieldModel::Predict(const Vector3d& cmd) const {
+  return cmd.head<2>() + ErrorAt(cmd.x(), cmd.y());
+}
+
+Result<QuadrantFieldModel> QuadrantFieldModel::Fit(const std::vector<GalvoSample>& samples,
+                                                   double half_x, double half_y) {
+  if (!(half_x > 0 && half_y > 0)) return InvalidArgument("quadrant fit: half sizes must be > 0");
+  const auto find = [&](double x, double y, Vector2d* meas) -> Status {
+    Vector2d sum = Vector2d::Zero();
+    int n = 0;
+    for (const GalvoSample& s : samples) {
+      if (std::abs(s.cmd.x() - x) < kNodeTolMm && std::abs(s.cmd.y() - y) < kNodeTolMm) {
+        sum += s.meas;
+        ++n;
+      }
+    }
+    if (n == 0) {
+      return InvalidArgument("quadrant fit: no target at (" + Mm(x) + ", " + Mm(y) +
+                             ") mm (needs the centre, the four axis ends and the four corners)");
+    }
+    *meas = sum / n;
+    return Status::Ok();
+  };
+  QuadrantFieldModel m;
+  m.half_x_ = half_x;
+  m.half_y_ = half_y;
+  INSITU_RETURN_IF_ERROR(find(0, 0, &m.centre_));
+  const double ax[4][2] = {{half_x, 0}, {-half_x, 0}, {0, half_y}, {0, -half_y}};
+  for (int k = 0; k < 4; ++k) {
+    Vector2d p;
+    INSITU_RETURN_IF_ERROR(find(ax[k][0], ax[k][1], &p));
+    m.axis_[k] = p - m.centre_;
+  }
+  // Quadrants ++, -+, --, +-.
+  const double sx[4] = {1, -1, -1, 1}, sy[4] = {1, 1, -1, -1};
+  for (int q = 0; q < 4; ++q) {
+    const double x = sx[q] * half_x, y = sy[q] * half_y;
+    Vector2d p;
+    INSITU_RETURN_IF_ERROR(find(x, y, &p));
+    m.k_[q] = 0;
+    m.kp_[q] = 0;
+    const Vector2d lin = m.Predict({x, y, 0});  // with k = 0: the linear part
+    const Vector2d r = p - lin;
+    m.k_[q] = r.x() / (x * y * y);
+    m.kp_[q] = r.y() / (y * x * x);
+  }
+  return m;
+}
+
+Vector2d QuadrantFieldModel::Predict(const Vector3d& cmd) const {
+  const double x = cmd.x(), y = cmd.y();
+  // Linear per half axis: the axis point's measured offset scaled by x / X (and y / Y).
+  const Vector2d ex = x >= 0 ? axis_[0] * (x / half_x_) : axis_[1] * (-x / half_x_);
+  const Vector2d ey = y >= 0 ? axis_[2] * (y / half_y_) : axis_[3] * (-y / half_y_);
+  const int q = x >= 0 ? (y >= 0 ? 0 : 3) : (y >= 0 ? 1 : 2);
+  return centre_ + ex + ey + Vector2d(k_[q] * x * y * y, kp_[q] * y * x * x);
+}
+
+Status HeadFitOptions::Validate() const {
+  if (max_iterations < 1) return InvalidArgument("max_iterations must be >= 1");
+  return Status::Ok();
+}
+
+Result<HeadFieldFit> HeadFieldFit::Fit(const std::vector<TargetSample>& samples,
+                                       const optics::HeadGeometry& design,
+                                       const HeadFitOptions& options) {
+  INSITU_RETURN_IF_ERROR(options.Validate());
+  INSITU_RETURN_IF_ERROR(design.Validate().Prefixed("design"));
+  if (samples.size() < 6) {
+    return FailedPrecondition("the physical head fit needs at least 6 targets, got " +
+                              std::to_string(samples.size()));
+  }
+  const optics::ScanOptics design_optics(design);
+  std::vector<optics::MirrorAngles> angles(samples.size());
+  for (size_t i = 0; i < samples.size(); ++i) {
+    const Vector3d& c = samples[i].cmd;
+    if (!design_optics.Solve(c.x(), c.y(), c.z(), &angles[i])) {
+      return InvalidArgument("target commanded at (" + Mm(c.x()) + ", " + Mm(c.y()) +
+                             ") mm lies outside the head's design field");
+    }
+  }
+  // Start: the design head, the plate placed by a rigid fit of the measurements onto the
+  // commands.
+  std::vector<Vector2d> meas, cmd;
+  for (const TargetSample& s : samples) {
+    meas.push_back(s.meas);
+    cmd.push_back(s.cmd.head<2>());
+  }
+  const Eigen::Isometry2d start = RigidFit(meas, cmd);
+  double p[kParams] = {};
+  p[kF] = design.focal_length_mm;
+  p[kC3] = design.ftheta_c3;
+  p[kC5] = design.ftheta_c5;
+  p[kTiltX] = design.x_axis_tilt_mrad * 1e-3;
+  p[kPhi] = std::atan2(start.linear()(1, 0), start.linear()(0, 0));
+  p[kTx] = start.translation().x();
+  p[kTy] = start.translation().y();
+
+  ceres::Problem problem;
+  for (size_t i = 0; i < samples.size(); ++i) {
+    problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<TargetCost, 2, kParams>(
+            new TargetCost(design, angles[i], samples[i].cmd, samples[i].meas)),
+        nullptr, p);
+  }
+  std::vector<int> fixed;
+  if (!options.fit_focal_length) fixed.push_back(kF);
+  if (!options.fit_ftheta_distortion) {
+    fixed.push_back(kC3);
+    fixed.push_back(kC5);
+  }
+  if (!options.fit_axis_tilt) fixed.push_back(kTiltX);
+  if (!options.fit_zero_offsets) {
+    fixed.push_back(kX0);
+    fixed.push_back(kY0);
+  }
+  if (!fixed.empty()) problem.SetManifold(p, new ceres::SubsetManifold(kParams, fixed));
+  const int free = kParams - static_cast<int>(fixed.size());
+  if (2 * static_cast<int>(samples.size()) <= free) {
+    return FailedPrecondition("the physical head fit has " + std::to_string(free) +
+                              " parameters and only " + std::to_string(2 * samples.size()) +
+                              " residuals");
+  }
+  ceres::Solver::Options so;
+  so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  so.linear_solver_type = ceres::DENSE_QR;
+  so.max_num_iterations = options.max_iterations;
+  so.function_tolerance = 1e-14;
+  so.parameter_tolerance = 1e-14;
+  so.gradient_tolerance = 1e-16;
+  so.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+  if (summary.termination_type != ceres::CONVERGENCE) {
+    return FailedPrecondition("the physical head fit did not converge: " + summary.BriefReport());
+  }
+
+  HeadFieldFit fit;
+  fit.summary_ = summary.BriefReport();
+  fit.head_.design = design;
+  fit.head_.built = design;
+  fit.head_.built.focal_length_mm = p[kF];
+  fit.head_.built.ftheta_c3 = p[kC3];
+  fit.head_.built.ftheta_c5 = p[kC5];
+  fit.head_.built.x_axis_tilt_mrad = p[kTiltX] * 1e3;
+  fit.head_.x_zero_offset_mrad = p[kX0] * 1e3;
+  fit.head_.y_zero_offset_mrad = p[kY0] * 1e3;
+  fit.galvo_from_plate_.linear() = Eigen::Rotation2Dd(p[kPhi]).toRotationMatrix();
+  fit.galvo_from_plate_.translation() = Vector2d(p[kTx], p[kTy]);
+
+  // Standard errors: sigma^2 (J^T J)^-1 over the free parameters, sigma^2 from the residuals.
+  ceres::Problem::EvaluateOptions eo;
+  double cost = 0;
+  std::vector<double> res;
+  ceres::CRSMatrix crs;
+  std::vector<double> se(kParams, 0.0);
+  if (problem.Evaluate(eo, &cost, &res, nullptr, &crs)) {
+    Eigen::MatrixXd j = Eigen::MatrixXd::Zero(crs.num_rows, crs.num_cols);
+    for (int r = 0; r < crs.num_rows; ++r) {
+      for (int k = crs.rows[r]; k < crs.rows[r + 1]; ++k) j(r, crs.cols[k]) = crs.values[k];
+    }
+    double rss = 0;
+    for (double r : res) rss += r * r;
+    const int dof = static_cast<int>(res.size()) - free;
+    const double sigma2 = dof > 0 ? rss / dof : NAN;
+    // The Jacobian's columns are the free parameters in order (the tangent space of the
+    // subset manifold).
+    const Eigen::MatrixXd jtj = j.leftCols(free).transpose() * j.leftCols(free);
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(jtj);
+    const double top = eig.eigenvalues().maxCoeff();
+    const bool singular = !(eig.eigenvalues().minCoeff() > 1e-12 * top);
+    const Eigen::MatrixXd cov = singular ? Eigen::MatrixXd() : Eigen::MatrixXd(jtj.inverse() * sigma2);
+    int col = 0;
+    for (int k = 0; k < kParams; ++k) {
+      if (std::find(fixed.begin(), fixed.end(), k) != fixed.end()) {
+        se[k] = 0.0;
+        continue;
+      }
+      se[k] = singular ? std::numeric_limits<double>::quiet_NaN() : std::sqrt(cov(col, col));
+      ++col;
+    }
+    fit.rms_mm_ = std::sqrt(rss / static_cast<double>(samples.size()));
+  }
+  for (int k = 0; k < kParams; ++k) {
+    if (std::find(fixed.begin(), fixed.end(), k) != fixed.end()) continue;
+    fit.params_.push_back({kParamNames[k], Reported(k, p[k]), Reported(k, se[k])});
+  }
+  return fit;
+}
+
+Vector2d HeadFieldFit::Predict(const Vector3d& cmd) const {
+  Vector3d spot;
+  if (!head_.Spot(cmd, {}, &spot)) return Vector2d(NAN, NAN);
+  return spot.head<2>();
+}
+
+std::vector<GalvoSample> HeadFieldFit::ToGalvo(const std::vector<TargetSample>& samples) const {
+  std::vector<GalvoSample> out;
+  out.reserve(samples.size());
+  for (const TargetSample& s : samples) out.push_back({s.cmd, galvo_from_plate_ * s.meas});
+  return out;
+}
+
+Result<PhysicsPlusTableModel> PhysicsPlusTableModel::Fit(const HeadFieldFit& physics,
+                                                         const std::vector<GalvoSample>& nodes) {
+  // The table holds meas - physics(cmd) at the nodes: a bilinear model of cmd -> cmd + that.
+  std::vector<GalvoSample> left;
+  for (const GalvoSample& s : nodes) {
+    left.push_back({s.cmd, s.cmd.head<2>() + (s.meas - physics.Predict(s.cmd))});
+  }
+  INSITU_ASSIGN_OR_RETURN(BilinearFieldModel table, BilinearFieldModel::Fit(left));
+  PhysicsPlusTableModel m;
+  m.physics_ = physics;
+  m.residual_ = std::move(table);
+  return m;
+}
+
+Vector2d PhysicsPlusTableModel::Predict(const Vector3d& cmd) const {
+  return physics_.Predict(cmd) + residual_.ErrorAt(cmd.x(), cmd.y());
+}
+
+ModelError PredictionError(const FieldModel& model, const std::vector<GalvoSample>& samples) {
+  ModelError e;
+  double ss = 0;
+  for (const GalvoSample& s : samples) {
+    const double d = (s.meas - model.Predict(s.cmd)).norm();
+    ss += d * d;
+    e.max_mm = std::max(e.max_mm, d);
+  }
+  e.rms_mm = samples.empty() ? 0.0 : std::sqrt(ss / samples.size());
+  return e;
+}
+
+ModelError NominalError(const std::vector<GalvoSample>& samples) {
+  ModelError e;
+  double ss = 0;
+  for (const GalvoSample& s : samples) {
+    const double d = (s.meas - s.cmd.head<2>()).norm();
+    ss += d * d;
+    e.max_mm = std::max(e.max_mm, d);
+  }
+  e.rms_mm = samples.empty() ? 0.0 : std::sqrt(ss / samples.size());
+  return e;
+}
+
+}  // namespace insitu::fit
