@@ -39,22 +39,6 @@ std::string Mm(double v) {
   return os.str();
 }
 
-// Cell and fraction of x in an ascending grid, clamped to the grid (nearest edge beyond it).
-void Locate(const std::vector<double>& g, double x, int* i, double* t) {
-  if (g.size() < 2 || x <= g.front()) {
-    *i = 0;
-    *t = 0.0;
-    return;
-  }
-  if (x >= g.back()) {
-    *i = static_cast<int>(g.size()) - 2;
-    *t = 1.0;
-    return;
-  }
-  *i = static_cast<int>(std::upper_bound(g.begin(), g.end(), x) - g.begin()) - 1;
-  *t = (x - g[*i]) / (g[*i + 1] - g[*i]);
-}
-
 // Parameter vector of the physical fit.
 enum Param { kF, kC3, kC5, kTiltX, kX0, kY0, kPhi, kTx, kTy, kParams };
 const char* const kParamNames[kParams] = {"focal_length_mm", "ftheta_c3",        "ftheta_c5",
@@ -158,47 +142,33 @@ Result<BilinearFieldModel> BilinearFieldModel::Fit(const std::vector<GalvoSample
     x.push_back(s.cmd.x());
     y.push_back(s.cmd.y());
   }
-  BilinearFieldModel m;
-  m.xs_ = DistinctSorted(x);
-  m.ys_ = DistinctSorted(y);
-  if (m.xs_.size() < 2 || m.ys_.size() < 2) {
+  const std::vector<double> xs = DistinctSorted(x), ys = DistinctSorted(y);
+  if (xs.size() < 2 || ys.size() < 2) {
     return InvalidArgument("a bilinear field table needs at least 2 x 2 grid nodes, got " +
-                           std::to_string(m.xs_.size()) + " x " + std::to_string(m.ys_.size()));
+                           std::to_string(xs.size()) + " x " + std::to_string(ys.size()));
   }
-  const size_t n = m.xs_.size() * m.ys_.size();
-  m.error_.assign(n, Vector2d::Zero());
+  const size_t n = xs.size() * ys.size();
+  std::vector<Vector2d> error(n, Vector2d::Zero());
   std::vector<int> count(n, 0);
   for (const GalvoSample& s : nodes) {
-    const int i = IndexOf(m.xs_, s.cmd.x()), j = IndexOf(m.ys_, s.cmd.y());
-    const size_t k = static_cast<size_t>(j) * m.xs_.size() + i;
-    m.error_[k] += s.meas - s.cmd.head<2>();
+    const size_t k = static_cast<size_t>(IndexOf(ys, s.cmd.y())) * xs.size() + IndexOf(xs, s.cmd.x());
+    error[k] += s.meas - s.cmd.head<2>();
     ++count[k];
   }
   for (size_t k = 0; k < n; ++k) {
     if (count[k] == 0) {
-      return InvalidArgument("the field grid has no node at (" + Mm(m.xs_[k % m.xs_.size()]) + ", " +
-                             Mm(m.ys_[k / m.xs_.size()]) + ") mm: it must be complete");
+      return InvalidArgument("the field grid has no node at (" + Mm(xs[k % xs.size()]) + ", " +
+                             Mm(ys[k / xs.size()]) + ") mm: it must be complete");
     }
-    m.error_[k] /= count[k];  // replicates average
+    error[k] /= count[k];  // replicates average
   }
+  BilinearFieldModel m;
+  INSITU_ASSIGN_OR_RETURN(m.error_, optics::GridTable::Make(xs, ys, std::move(error)));
   return m;
 }
 
 std::string BilinearFieldModel::name() const {
   return "bilinear " + std::to_string(nx()) + "x" + std::to_string(ny());
-}
-
-Vector2d BilinearFieldModel::ErrorAt(double x, double y) const {
-  int i, j;
-  double tx, ty;
-  Locate(xs_, x, &i, &tx);
-  Locate(ys_, y, &j, &ty);
-  const size_t w = xs_.size();
-  const Vector2d& e00 = error_[j * w + i];
-  const Vector2d& e10 = error_[j * w + i + 1];
-  const Vector2d& e01 = error_[(j + 1) * w + i];
-  const Vector2d& e11 = error_[(j + 1) * w + i + 1];
-  return (1 - ty) * ((1 - tx) * e00 + tx * e10) + ty * ((1 - tx) * e01 + tx * e11);
 }
 
 Vector2d BilinearFieldModel::Predict(const Vector3d& cmd) const {

@@ -76,38 +76,41 @@ Result<CorrectionTable> CorrectionTable::Parse(const std::string& text, const st
   }
   if (column.empty()) return InvalidArgument(origin + ": no header row (x_mm, y_mm, dx_mm, dy_mm)");
   CorrectionTable t;
+  std::vector<double> xs, ys;
   for (const Row& r : rows) {
-    for (auto [list, v] : {std::pair{&t.xs_, r.x}, std::pair{&t.ys_, r.y}}) {
+    for (auto [list, v] : {std::pair{&xs, r.x}, std::pair{&ys, r.y}}) {
       if (std::none_of(list->begin(), list->end(),
                        [&](double u) { return std::abs(u - v) < 1e-9; })) {
         list->push_back(v);
       }
     }
   }
-  std::sort(t.xs_.begin(), t.xs_.end());
-  std::sort(t.ys_.begin(), t.ys_.end());
-  if (t.xs_.size() < 2 || t.ys_.size() < 2) {
+  std::sort(xs.begin(), xs.end());
+  std::sort(ys.begin(), ys.end());
+  if (xs.size() < 2 || ys.size() < 2) {
     return InvalidArgument(origin + ": a correction grid needs at least 2 x 2 nodes, got " +
-                           std::to_string(t.xs_.size()) + " x " + std::to_string(t.ys_.size()));
+                           std::to_string(xs.size()) + " x " + std::to_string(ys.size()));
   }
-  const size_t nx = t.xs_.size();
-  t.offset_.assign(nx * t.ys_.size(), Eigen::Vector2d::Constant(NAN));
+  const size_t nx = xs.size();
+  std::vector<Eigen::Vector2d> offset(nx * ys.size(), Eigen::Vector2d::Constant(NAN));
   for (const Row& r : rows) {
-    Eigen::Vector2d& o = t.offset_[IndexOf(t.ys_, r.y) * nx + IndexOf(t.xs_, r.x)];
+    Eigen::Vector2d& o = offset[IndexOf(ys, r.y) * nx + IndexOf(xs, r.x)];
     if (!std::isnan(o.x())) {
       return InvalidArgument(origin + ":" + std::to_string(r.line) + ": node (" +
                              std::to_string(r.x) + ", " + std::to_string(r.y) + ") appears twice");
     }
     o = {r.dx, r.dy};
   }
-  for (size_t j = 0; j < t.ys_.size(); ++j) {
+  for (size_t j = 0; j < ys.size(); ++j) {
     for (size_t i = 0; i < nx; ++i) {
-      if (std::isnan(t.offset_[j * nx + i].x())) {
-        return InvalidArgument(origin + ": the grid has no node at (" + std::to_string(t.xs_[i]) +
-                               ", " + std::to_string(t.ys_[j]) + ") mm");
+      if (std::isnan(offset[j * nx + i].x())) {
+        return InvalidArgument(origin + ": the grid has no node at (" + std::to_string(xs[i]) +
+                               ", " + std::to_string(ys[j]) + ") mm");
       }
     }
   }
+  INSITU_ASSIGN_OR_RETURN(t.table_, optics::GridTable::Make(std::move(xs), std::move(ys),
+                                                            std::move(offset)));
   return t;
 }
 
@@ -116,20 +119,21 @@ Result<CorrectionTable> CorrectionTable::Load(const std::string& path) {
   return Parse(text, path);
 }
 
-Eigen::Vector2d CorrectionTable::OffsetAt(double x, double y) const {
-  const auto cell = [](const std::vector<double>& v, double q, double* f) {
-    const double c = std::clamp(q, v.front(), v.back());
-    int i = static_cast<int>(std::upper_bound(v.begin(), v.end(), c) - v.begin()) - 1;
-    i = std::clamp(i, 0, static_cast<int>(v.size()) - 2);
-    *f = (c - v[i]) / (v[i + 1] - v[i]);
-    return i;
-  };
-  double fx, fy;
-  const int i = cell(xs_, x, &fx), j = cell(ys_, y, &fy);
-  const size_t nx = xs_.size();
-  const auto at = [&](int a, int b) { return offset_[static_cast<size_t>(b) * nx + a]; };
-  return (1 - fy) * ((1 - fx) * at(i, j) + fx * at(i + 1, j)) +
-         fy * ((1 - fx) * at(i, j + 1) + fx * at(i + 1, j + 1));
+Eigen::Vector2d CorrectionTable::OffsetAt(double x, double y) const { return table_.At(x, y); }
+
+std::string CorrectionTable::ToCsv() const {
+  std::ostringstream os;
+  os.precision(10);
+  os << "# insitu field correction: offset to add to a commanded galvo point (mm)\n"
+     << "x_mm,y_mm,dx_mm,dy_mm\n";
+  const size_t nx = table_.xs().size();
+  for (size_t j = 0; j < table_.ys().size(); ++j) {
+    for (size_t i = 0; i < nx; ++i) {
+      const Eigen::Vector2d& d = table_.values()[j * nx + i];
+      os << table_.xs()[i] << "," << table_.ys()[j] << "," << d.x() << "," << d.y() << "\n";
+    }
+  }
+  return os.str();
 }
 
 FieldCorrection CorrectionTable::AsFieldCorrection() const {

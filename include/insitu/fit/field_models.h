@@ -22,6 +22,7 @@
 #include <Eigen/Geometry>
 
 #include "insitu/core/status.h"
+#include "insitu/optics/grid_table.h"
 #include "insitu/optics/scan_head.h"
 
 namespace insitu::fit {
@@ -59,15 +60,13 @@ class BilinearFieldModel : public FieldModel {
   static Result<BilinearFieldModel> Fit(const std::vector<GalvoSample>& nodes);
   std::string name() const override;
   Eigen::Vector2d Predict(const Eigen::Vector3d& cmd) const override;
-  Eigen::Vector2d ErrorAt(double x_mm, double y_mm) const;
-  int nx() const { return static_cast<int>(xs_.size()); }
-  int ny() const { return static_cast<int>(ys_.size()); }
-  const std::vector<double>& xs() const { return xs_; }
-  const std::vector<double>& ys() const { return ys_; }
+  Eigen::Vector2d ErrorAt(double x_mm, double y_mm) const { return error_.At(x_mm, y_mm); }
+  int nx() const { return static_cast<int>(error_.xs().size()); }
+  int ny() const { return static_cast<int>(error_.ys().size()); }
+  const optics::GridTable& table() const { return error_; }
 
  private:
-  std::vector<double> xs_, ys_;
-  std::vector<Eigen::Vector2d> error_;  // row-major: iy * nx + ix
+  optics::GridTable error_;  // meas - cmd at the nodes
 };
 
 // Seed 003's quadrant curve fit from 9 points: the centre, the four axis points (+-X, 0),

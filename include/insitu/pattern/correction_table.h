@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "insitu/core/status.h"
+#include "insitu/optics/grid_table.h"
 #include "insitu/pattern/galvo_list.h"
 
 namespace insitu::pattern {
@@ -32,12 +33,17 @@ class CorrectionTable {
   // As a FieldCorrection for Emit().
   FieldCorrection AsFieldCorrection() const;
 
-  int nodes_x() const { return static_cast<int>(xs_.size()); }
-  int nodes_y() const { return static_cast<int>(ys_.size()); }
+  int nodes_x() const { return static_cast<int>(table_.xs().size()); }
+  int nodes_y() const { return static_cast<int>(table_.ys().size()); }
+  // A table of offsets already on a grid (a correction computed by a field calibration).
+  explicit CorrectionTable(optics::GridTable table) : table_(std::move(table)) {}
+  const optics::GridTable& table() const { return table_; }
+  // As CSV in the format Parse reads.
+  std::string ToCsv() const;
 
  private:
-  std::vector<double> xs_, ys_;          // ascending
-  std::vector<Eigen::Vector2d> offset_;  // row-major: y index * nx + x index
+  CorrectionTable() = default;
+  optics::GridTable table_;  // offsets dx, dy
 };
 
 }  // namespace insitu::pattern
