@@ -102,9 +102,55 @@ Status GalvoGeometry::Validate() const {
   return Status::Ok();
 }
 
+Status HeadCalibration::Validate() const {
+  INSITU_RETURN_IF_ERROR(model.Validate());
+  return pointer.Validate().Prefixed("pointer");
+}
+
+bool HeadCalibration::MarkSpot(const Eigen::Vector3d& cmd, Eigen::Vector3d* spot) const {
+  if (!model.Spot(cmd, {}, spot)) return false;
+  spot->head<2>() += residual_mm.At(cmd.x(), cmd.y());
+  return true;
+}
+
+bool HeadCalibration::PointerRay(const Eigen::Vector3d& cmd, optics::ChiefRay* ray) const {
+  return model.Land(cmd, pointer, ray);
+}
+
+bool HeadCalibration::MarkCommandFor(const Eigen::Vector3d& target, Eigen::Vector3d* cmd) const {
+  if (!measured) {
+    *cmd = target;
+    return true;
+  }
+  // Newton on MarkSpot; its Jacobian is within a percent of the identity over the field.
+  Eigen::Vector2d c = target.head<2>();
+  constexpr double kStep = 1e-4;
+  for (int iter = 0; iter < 40; ++iter) {
+    Eigen::Vector3d s, sx, sy;
+    if (!MarkSpot({c.x(), c.y(), target.z()}, &s) ||
+        !MarkSpot({c.x() + kStep, c.y(), target.z()}, &sx) ||
+        !MarkSpot({c.x(), c.y() + kStep, target.z()}, &sy)) {
+      return false;
+    }
+    const Eigen::Vector2d r = s.head<2>() - target.head<2>();
+    if (r.norm() < 1e-7) {
+      *cmd = Eigen::Vector3d(c.x(), c.y(), target.z());
+      return true;
+    }
+    Eigen::Matrix2d j;
+    j.col(0) = (sx - s).head<2>() / kStep;
+    j.col(1) = (sy - s).head<2>() / kStep;
+    const Eigen::Vector2d d = j.fullPivLu().solve(r);
+    if (!d.allFinite()) return false;
+    c -= d;
+  }
+  return false;
+}
+
 Status CalibrationSet::Validate() const {
   INSITU_RETURN_IF_ERROR(camera.Validate().Prefixed("camera"));
   INSITU_RETURN_IF_ERROR(galvo.Validate().Prefixed("galvo"));
+  INSITU_RETURN_IF_ERROR(head.Validate().Prefixed("head"));
   return Status::Ok();
 }
 
@@ -174,6 +220,58 @@ Result<CalibrationSet> LoadCalibration(const std::string& path) {
                                                  {at[0], at[1], at[2]}, roll);
   }
   if (g.ok()) g.FailFromValidate(set.galvo.Validate());
+  set.head.model.design.telecentric = set.galvo.lens == ScanLens::kTelecentric;
+  if (r.Has("head")) {
+    ConfigReader& h = r.Section("head");
+    HeadCalibration& head = set.head;
+    h.Read("measured", &head.measured);
+    h.Read("measured_by", &head.measured_by);
+    const auto geometry = [](ConfigReader& s, optics::HeadGeometry* g) {
+      s.Read("focal_length_mm", &g->focal_length_mm);
+      s.Read("mirror_separation_mm", &g->mirror_separation_mm);
+      s.Read("exit_pupil_height_mm", &g->exit_pupil_height_mm);
+      s.Read("pupil_aberration", &g->pupil_aberration);
+      s.Read("telecentric", &g->telecentric);
+      s.Read("ftheta_c3", &g->ftheta_c3);
+      s.Read("ftheta_c5", &g->ftheta_c5);
+      s.Read("x_axis_tilt_mrad", &g->x_axis_tilt_mrad);
+      s.Read("y_axis_tilt_mrad", &g->y_axis_tilt_mrad);
+      if (s.ok()) s.FailFromValidate(g->Validate());
+    };
+    geometry(h.Section("design"), &head.model.design);
+    head.model.built = head.model.design;
+    if (h.Has("built")) geometry(h.Section("built"), &head.model.built);
+    h.Read("x_zero_offset_mrad", &head.model.x_zero_offset_mrad);
+    h.Read("y_zero_offset_mrad", &head.model.y_zero_offset_mrad);
+    if (h.Has("pointer")) {
+      ConfigReader& p = h.Section("pointer");
+      p.Read("offset_x_mrad", &head.pointer.offset_x_mrad);
+      p.Read("offset_y_mrad", &head.pointer.offset_y_mrad);
+      p.Read("lateral_colour_pct", &head.pointer.lateral_colour_pct);
+      if (p.ok()) p.FailFromValidate(head.pointer.Validate());
+    }
+    if (h.Has("residual")) {
+      ConfigReader& t = h.Section("residual");
+      std::vector<double> xs, ys, dx, dy;
+      for (const char* key : {"x_mm", "y_mm", "dx_mm", "dy_mm"}) t.Require(key);
+      t.Read("x_mm", &xs);
+      t.Read("y_mm", &ys);
+      t.Read("dx_mm", &dx);
+      t.Read("dy_mm", &dy);
+      if (t.ok() && dx.size() != dy.size()) t.Fail("dy_mm", "must have as many values as dx_mm");
+      if (t.ok()) {
+        std::vector<Eigen::Vector2d> v;
+        for (size_t i = 0; i < dx.size(); ++i) v.emplace_back(dx[i], dy[i]);
+        auto table = optics::GridTable::Make(xs, ys, std::move(v));
+        if (table.ok()) {
+          head.residual_mm = std::move(*table);
+        } else {
+          t.Fail("dx_mm", table.status().message());
+        }
+      }
+    }
+    if (h.ok()) h.FailFromValidate(head.model.Validate());
+  }
   if (r.Has("height_lookup")) {
     ConfigReader& h = r.Section("height_lookup");
     std::vector<double> xs, zs;
@@ -229,13 +327,53 @@ Status SaveCalibration(const CalibrationSet& set, const std::string& path) {
      << "\n  pivot_height_mm: " << set.galvo.pivot_height_mm << "\n  camera_from_galvo:\n"
      << "    rotation_rodrigues_rad: [" << rv.x() << ", " << rv.y() << ", " << rv.z() << "]\n"
      << "    translation_mm: [" << t.x() << ", " << t.y() << ", " << t.z() << "]\n";
+  auto list = [&](const std::vector<double>& v) {
+    os << "[";
+    for (size_t i = 0; i < v.size(); ++i) os << (i ? ", " : "") << v[i];
+    os << "]";
+  };
+  {
+    const HeadCalibration& h = set.head;
+    const auto geometry = [&](const char* name, const optics::HeadGeometry& g) {
+      os << "  " << name << ":\n    focal_length_mm: " << g.focal_length_mm
+         << "\n    mirror_separation_mm: " << g.mirror_separation_mm
+         << "\n    exit_pupil_height_mm: " << g.exit_pupil_height_mm
+         << "\n    pupil_aberration: " << g.pupil_aberration
+         << "\n    telecentric: " << (g.telecentric ? "true" : "false")
+         << "\n    ftheta_c3: " << g.ftheta_c3 << "\n    ftheta_c5: " << g.ftheta_c5
+         << "\n    x_axis_tilt_mrad: " << g.x_axis_tilt_mrad
+         << "\n    y_axis_tilt_mrad: " << g.y_axis_tilt_mrad << "\n";
+    };
+    os << "head:  # the scan head: design (its controller's correction) and as measured\n"
+       << "  measured: " << (h.measured ? "true" : "false") << "\n  measured_by: \""
+       << h.measured_by << "\"\n";
+    geometry("design", h.model.design);
+    geometry("built", h.model.built);
+    os << "  x_zero_offset_mrad: " << h.model.x_zero_offset_mrad
+       << "\n  y_zero_offset_mrad: " << h.model.y_zero_offset_mrad
+       << "\n  pointer:\n    offset_x_mrad: " << h.pointer.offset_x_mrad
+       << "\n    offset_y_mrad: " << h.pointer.offset_y_mrad
+       << "\n    lateral_colour_pct: " << h.pointer.lateral_colour_pct << "\n";
+    if (!h.residual_mm.empty()) {
+      std::vector<double> dx, dy;
+      for (const Eigen::Vector2d& v : h.residual_mm.values()) {
+        dx.push_back(v.x());
+        dy.push_back(v.y());
+      }
+      os << "  residual:  # what the physical model leaves at the grid nodes, row-major (y, then x)\n"
+         << "    x_mm: ";
+      list(h.residual_mm.xs());
+      os << "\n    y_mm: ";
+      list(h.residual_mm.ys());
+      os << "\n    dx_mm: ";
+      list(dx);
+      os << "\n    dy_mm: ";
+      list(dy);
+      os << "\n";
+    }
+  }
   const HeightLookup& hl = set.height_lookup;
   if (!hl.empty()) {
-    auto list = [&](const std::vector<double>& v) {
-      os << "[";
-      for (size_t i = 0; i < v.size(); ++i) os << (i ? ", " : "") << v[i];
-      os << "]";
-    };
     os << "height_lookup:  # stripe curve v(u) of every (line offset, stage height), x-major\n"
        << "  line_x_mm: ";
     list(hl.line_x_mm());

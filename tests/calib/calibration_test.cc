@@ -56,6 +56,42 @@ TEST(Calibration, SaveThenLoadRoundTrips) {
   EXPECT_DOUBLE_EQ(again->camera.fx, set->camera.fx);
 }
 
+// A measured head goes through the file unchanged (12 significant digits), and the file's
+// correction inverts its own landing map.
+TEST(Calibration, MeasuredHeadRoundTripsAndInverts) {
+  auto set = LoadCalibration(std::string(INSITU_SOURCE_DIR) + "/calib/as_designed.yaml");
+  ASSERT_TRUE(set.ok()) << set.status().ToString();
+  EXPECT_FALSE(set->head.measured);
+  EXPECT_DOUBLE_EQ(set->head.model.design.focal_length_mm, 255.0);
+  HeadCalibration& h = set->head;
+  h.measured = true;
+  h.measured_by = "test";
+  h.model.built.focal_length_mm = 256.2;
+  h.model.built.ftheta_c3 = 0.03;
+  h.model.x_zero_offset_mrad = 0.2;
+  h.pointer.lateral_colour_pct = -0.3;
+  auto table = optics::GridTable::Make({-50, 0, 50}, {-50, 50},
+                                       {{0.001, 0}, {0, 0.002}, {-0.001, 0}, {0, 0}, {0.003, 0}, {0, 0}});
+  ASSERT_TRUE(table.ok());
+  h.residual_mm = *table;
+  const std::string out = (fs::temp_directory_path() / "cal_head.yaml").string();
+  ASSERT_TRUE(SaveCalibration(*set, out).ok());
+  auto again = LoadCalibration(out);
+  ASSERT_TRUE(again.ok()) << again.status().ToString();
+  const HeadCalibration& g = again->head;
+  EXPECT_TRUE(g.measured);
+  EXPECT_DOUBLE_EQ(g.model.built.focal_length_mm, 256.2);
+  EXPECT_DOUBLE_EQ(g.model.built.ftheta_c3, 0.03);
+  EXPECT_DOUBLE_EQ(g.pointer.lateral_colour_pct, -0.3);
+  EXPECT_EQ(g.residual_mm.values().size(), 6u);
+  const Eigen::Vector3d target(42.0, -17.0, 3.0);
+  Eigen::Vector3d cmd, spot;
+  ASSERT_TRUE(g.MarkCommandFor(target, &cmd));
+  ASSERT_TRUE(g.MarkSpot(cmd, &spot));
+  EXPECT_NEAR((spot - target).norm(), 0.0, 1e-6);
+  EXPECT_GT((cmd - target).norm(), 0.1);  // the 0.47 % scale alone moves it 0.2 mm
+}
+
 TEST(Calibration, RefusesOtherVersionsUnknownKeysAndMissingKeys) {
   std::string text = kMinimal;
   auto bad_version = LoadCalibration(

@@ -14,6 +14,8 @@
 
 #include "insitu/calib/height_lookup.h"
 #include "insitu/core/status.h"
+#include "insitu/optics/grid_table.h"
+#include "insitu/optics/scan_head.h"
 
 namespace insitu::calib {
 
@@ -47,6 +49,29 @@ struct GalvoGeometry {
   Status Validate() const;
 };
 
+// The scan head as the machine knows it: the design geometry its controller's correction
+// inverts, and (once a field calibration has run) the head as measured: the as-built geometry
+// and zero errors fitted to marks the camera measured, the pointer's path against the marking
+// beam, and a table of what the physical model leaves. Until measured, built = design: every
+// command is taken to land where it asks. Galvo frame, mm.
+struct HeadCalibration {
+  bool measured = false;
+  std::string measured_by;  // the field calibration that measured it
+  optics::HeadModel model;  // design, built, zero offsets
+  optics::BeamPath pointer;
+  optics::GridTable residual_mm;  // marking beam: measured - model at the grid nodes
+
+  Status Validate() const;
+  // Where the marking beam lands for a command (x, y, focus z): on the plane z = cmd.z.
+  // False outside the head's range.
+  bool MarkSpot(const Eigen::Vector3d& cmd, Eigen::Vector3d* spot) const;
+  // The chief ray of the pointer for a command.
+  bool PointerRay(const Eigen::Vector3d& cmd, optics::ChiefRay* ray) const;
+  // The command that puts the marking beam on target (x, y at height target.z): the field
+  // correction of every list. Identity when not measured. False if it does not converge.
+  bool MarkCommandFor(const Eigen::Vector3d& target, Eigen::Vector3d* cmd) const;
+};
+
 struct CalibrationSet {
   static constexpr int kFormatVersion = 1;
   int version = kFormatVersion;
@@ -55,6 +80,7 @@ struct CalibrationSet {
   CameraIntrinsics camera;
   GalvoGeometry galvo;
   HeightLookup height_lookup;  // empty until a height calibration has run (method 2 needs it)
+  HeadCalibration head;        // the design head until a field calibration has measured it
 
   Status Validate() const;
 };
