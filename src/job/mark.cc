@@ -385,6 +385,15 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
     };
   }
   INSITU_ASSIGN_OR_RETURN(ScanMachine up, BringUp(job, spec, machine_config));
+  if (!correction && up.calibration.head.measured) {
+    // The head the field calibration measured: every point is sent as the command that puts
+    // the marking beam on it. A point the head cannot reach keeps its command and is refused
+    // by the field check in Emit.
+    correction = [head = up.calibration.head](const Eigen::Vector3d& p) {
+      Eigen::Vector3d c;
+      return head.MarkCommandFor(p, &c) ? c : p;
+    };
+  }
   {
     // The list's limits are the head's own unless the job narrows them.
     const hw::ScannerInfo head = up.machine.scanner->info();

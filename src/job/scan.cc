@@ -135,8 +135,11 @@ Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
     }
     // Seed 000 eq. (1)-(4): pixel -> normalised ray -> light plane -> galvo frame.
     const std::vector<Eigen::Vector2d> normalized = cam.Undistort(pixels);
-    const geometry::PlaneInCamera plane = geometry::LightPlaneInCamera(
-        geometry::PivotPoint(calibration.galvo, b), b, c, calibration.galvo.camera_from_galvo);
+    // On a measured head the plane follows the pointer's own chief rays (the head's scale,
+    // distortion and the pointer's offset included); otherwise the seed's plane through a, b, c.
+    // 20 mm: the height range of the parts a scan measures (the lookup's +-15 mm and more).
+    const geometry::PlaneInCamera plane = geometry::LineLightPlane(
+        calibration, from, to, 20.0, calibration.galvo.camera_from_galvo);
     for (size_t k = 0; k < normalized.size(); ++k) {
       const auto p_cam = geometry::IntersectRayWithPlane(normalized[k], plane);
       if (!p_cam) {

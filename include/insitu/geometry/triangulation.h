@@ -27,6 +27,15 @@ PlaneInCamera LightPlaneInCamera(const Eigen::Vector3d& a_in_galvo,
                                  const Eigen::Vector3d& c_in_galvo,
                                  const Eigen::Isometry3d& camera_from_galvo);
 
+// The light plane of a line on a head whose field has been measured: the least-squares plane
+// through the pointer's chief rays along the line (calibration's head), each sampled over the
+// scan's height range, expressed in the camera frame. The beams of one line sweep a slightly
+// curved sheet; over +-z_range_mm the plane follows it to a few micrometres. Falls back to the
+// seed's plane through a, b, c when the head is not measured or a ray cannot be traced.
+PlaneInCamera LineLightPlane(const calib::CalibrationSet& calibration,
+                             const Eigen::Vector3d& from_cmd, const Eigen::Vector3d& to_cmd,
+                             double z_range_mm, const Eigen::Isometry3d& camera_from_galvo);
+
 // Point a of the seed's model for a scan line whose ends are b and c.
 Eigen::Vector3d PivotPoint(const calib::GalvoGeometry& galvo, const Eigen::Vector3d& b_in_galvo);
 
