@@ -195,4 +195,80 @@ AlignmentSummary AlignCameraToGalvo(const std::vector<GalvoSpot>& spots,
   return s;
 }
 
+PlatePoseSummary PlateFromBoard(const std::vector<Eigen::Vector2d>& corners,
+                                const BoardGeometry& board, const CameraIntrinsics& camera,
+                                double thickness_mm) {
+  PlatePoseSummary s;
+  const size_t expected = static_cast<size_t>(board.inner_cols) * board.inner_rows;
+  if (corners.size() != expected) {
+    s.message = "the board on the plate shows " + std::to_string(corners.size()) +
+                " corners, expected " + std::to_string(expected);
+    return s;
+  }
+  if (!(thickness_mm >= 0)) {
+    s.message = "board thickness must be >= 0 mm";
+    return s;
+  }
+  std::vector<cv::Point3d> obj;
+  std::vector<cv::Point2d> img;
+  for (int j = 0; j < board.inner_rows; ++j) {
+    for (int i = 0; i < board.inner_cols; ++i) {
+      obj.emplace_back(i * board.square_mm, j * board.square_mm, 0.0);
+      const Eigen::Vector2d& p = corners[static_cast<size_t>(j) * board.inner_cols + i];
+      img.emplace_back(p.x(), p.y());
+    }
+  }
+  cv::Mat rvec, tvec;
+  try {
+    if (!cv::solvePnP(obj, img, CameraMatrix(camera), Distortion(camera), rvec, tvec, false,
+                      cv::SOLVEPNP_IPPE)) {
+      s.message = "the board's pose could not be solved";
+      return s;
+    }
+    cv::solvePnPRefineLM(obj, img, CameraMatrix(camera), Distortion(camera), rvec, tvec);
+  } catch (const cv::Exception& e) {
+    s.message = std::string("the board's pose could not be solved: ") + e.what();
+    return s;
+  }
+  const Eigen::Vector3d rv(rvec.at<double>(0), rvec.at<double>(1), rvec.at<double>(2));
+  Eigen::Isometry3d camera_from_board = Eigen::Isometry3d::Identity();
+  if (rv.norm() > 0) camera_from_board.linear() = Eigen::AngleAxisd(rv.norm(), rv.normalized()).matrix();
+  camera_from_board.translation() = Eigen::Vector3d(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
+  double sum = 0;
+  for (size_t k = 0; k < obj.size(); ++k) {
+    const Eigen::Vector2d proj =
+        camera.Project(camera_from_board * Eigen::Vector3d(obj[k].x, obj[k].y, obj[k].z));
+    sum += (proj - Eigen::Vector2d(img[k].x, img[k].y)).squaredNorm();
+  }
+  s.rms_px = std::sqrt(sum / obj.size());
+  // The board's z may point into the plate or out of it (the corner order decides): the
+  // plate frame's +z faces the camera, and its x, y stay right-handed with it.
+  Eigen::Isometry3d board_from_plate = Eigen::Isometry3d::Identity();
+  const Eigen::Vector3d camera_in_board = camera_from_board.inverse().translation();
+  const double up = camera_in_board.z() > 0 ? 1.0 : -1.0;
+  board_from_plate.linear() = Eigen::Vector3d(1.0, up, up).asDiagonal();
+  board_from_plate.translation() = Eigen::Vector3d(0, 0, -up * thickness_mm);
+  s.camera_from_plate = camera_from_board * board_from_plate;
+  s.ok = true;
+  s.message = "ok";
+  return s;
+}
+
+std::vector<std::optional<Eigen::Vector2d>> PixelsOnPlane(
+    const std::vector<Eigen::Vector2d>& pixels, const CameraIntrinsics& camera,
+    const Eigen::Isometry3d& camera_from_plane) {
+  const std::vector<Eigen::Vector2d> rays = camera.Undistort(pixels);
+  const Eigen::Isometry3d plane_from_camera = camera_from_plane.inverse();
+  const Eigen::Vector3d origin = plane_from_camera.translation();
+  std::vector<std::optional<Eigen::Vector2d>> out(pixels.size());
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const Eigen::Vector3d dir = plane_from_camera.linear() * Eigen::Vector3d(rays[i].x(), rays[i].y(), 1.0);
+    if (std::abs(dir.z()) < 1e-12) continue;
+    const double t = -origin.z() / dir.z();
+    if (!(t > 0)) continue;
+    out[i] = (origin + t * dir).head<2>();
+  }
+  return out;
+}
+
 }  // namespace insitu::calib

@@ -392,6 +392,98 @@ Vector2d PhysicsPlusTableModel::Predict(const Vector3d& cmd) const {
   return physics_.Predict(cmd) + residual_.ErrorAt(cmd.x(), cmd.y());
 }
 
+namespace {
+
+// Residual of one spot of a second beam: spot(cmd; path) - meas, galvo frame, mm.
+struct BeamCost {
+  BeamCost(const optics::HeadGeometry& built, const optics::MirrorAngles& angles,
+           const Vector3d& cmd, const Vector2d& meas)
+      : built_(built), angles_(angles), cmd_(cmd), meas_(meas) {}
+
+  template <typename T>
+  bool operator()(const T* const p, T* residual) const {
+    optics::HeadParamsT<T> h;
+    h.focal_length_mm = T(built_.focal_length_mm);
+    h.mirror_separation_mm = T(built_.mirror_separation_mm);
+    h.c3 = T(built_.ftheta_c3);
+    h.c5 = T(built_.ftheta_c5);
+    h.x_axis_tilt_rad = T(built_.x_axis_tilt_mrad * 1e-3);
+    h.y_axis_tilt_rad = T(built_.y_axis_tilt_mrad * 1e-3);
+    h.beam_offset_x_rad = p[0];
+    h.beam_offset_y_rad = p[1];
+    h.beam_focal_scale = T(1) + p[2];
+    h.exit_pupil_height_mm = built_.exit_pupil_height_mm;
+    h.pupil_aberration = built_.pupil_aberration;
+    h.telecentric = built_.telecentric;
+    T xy[2], up[3];
+    optics::TraceChiefRay(h, T(angles_.x_rad), T(angles_.y_rad), xy, up);
+    const T z = T(cmd_.z());
+    residual[0] = xy[0] + up[0] * z / up[2] - T(meas_.x());
+    residual[1] = xy[1] + up[1] * z / up[2] - T(meas_.y());
+    return true;
+  }
+
+  optics::HeadGeometry built_;
+  optics::MirrorAngles angles_;
+  Vector3d cmd_;
+  Vector2d meas_;
+};
+
+}  // namespace
+
+Result<BeamPathFit> FitBeamPath(const optics::HeadModel& head,
+                                const std::vector<GalvoSample>& spots) {
+  if (spots.size() < 3) {
+    return FailedPrecondition("the beam path fit needs at least 3 spots, got " +
+                              std::to_string(spots.size()));
+  }
+  double p[3] = {0, 0, 0};  // offset x, y (rad), focal scale - 1
+  ceres::Problem problem;
+  for (const GalvoSample& s : spots) {
+    optics::MirrorAngles a;
+    if (!head.CommandAngles(s.cmd, &a)) {
+      return InvalidArgument("spot commanded at (" + Mm(s.cmd.x()) + ", " + Mm(s.cmd.y()) +
+                             ") mm lies outside the head's design field");
+    }
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<BeamCost, 2, 3>(
+                                 new BeamCost(head.built, a, s.cmd, s.meas)),
+                             nullptr, p);
+  }
+  ceres::Solver::Options so;
+  so.linear_solver_type = ceres::DENSE_QR;
+  so.function_tolerance = 1e-14;
+  so.parameter_tolerance = 1e-14;
+  so.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+  if (summary.termination_type != ceres::CONVERGENCE) {
+    return FailedPrecondition("the beam path fit did not converge: " + summary.BriefReport());
+  }
+  BeamPathFit fit;
+  fit.path = {p[0] * 1e3, p[1] * 1e3, p[2] * 1e2};
+  double cost = 0;
+  std::vector<double> res;
+  ceres::CRSMatrix crs;
+  if (problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, &res, nullptr, &crs)) {
+    Eigen::MatrixXd j = Eigen::MatrixXd::Zero(crs.num_rows, crs.num_cols);
+    for (int r = 0; r < crs.num_rows; ++r) {
+      for (int k = crs.rows[r]; k < crs.rows[r + 1]; ++k) j(r, crs.cols[k]) = crs.values[k];
+    }
+    double rss = 0;
+    for (double r : res) rss += r * r;
+    fit.rms_mm = std::sqrt(rss / spots.size());
+    const int dof = static_cast<int>(res.size()) - 3;
+    const Eigen::Matrix3d jtj = j.transpose() * j;
+    if (dof > 0 && std::abs(jtj.determinant()) > 0) {
+      const Eigen::Matrix3d cov = jtj.inverse() * (rss / dof);
+      fit.stderr_offset_x_mrad = std::sqrt(cov(0, 0)) * 1e3;
+      fit.stderr_offset_y_mrad = std::sqrt(cov(1, 1)) * 1e3;
+      fit.stderr_lateral_colour_pct = std::sqrt(cov(2, 2)) * 1e2;
+    }
+  }
+  return fit;
+}
+
 ModelError PredictionError(const FieldModel& model, const std::vector<GalvoSample>& samples) {
   ModelError e;
   double ss = 0;

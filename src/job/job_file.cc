@@ -259,6 +259,7 @@ void ReadWorld(ConfigReader& r, sim::WorldOptions* w) {
   b.Read("margin_mm", &bo.margin_mm);
   b.Read("albedo_dark", &bo.albedo_dark);
   b.Read("albedo_light", &bo.albedo_light);
+  b.ReadArray("plate_pose", bo.plate_pose.data(), 4);
   if (b.Has("poses")) {
     b.Skip("poses");
     const ConfigNode poses = b.node().Child("poses");

@@ -263,7 +263,13 @@ void Scene::SetBoard(const BoardOptions& options, int index) {
   board_ = options;
   board_present_ = options.present && !options.poses.empty() && index >= 0;
   if (!board_present_) return;
-  const auto& p = options.poses[static_cast<size_t>(index) % options.poses.size()];
+  SetBoardPose(options, options.poses[static_cast<size_t>(index) % options.poses.size()]);
+}
+
+void Scene::SetBoardPose(const BoardOptions& options, const std::array<double, 6>& p) {
+  board_ = options;
+  board_present_ = options.present;
+  if (!board_present_) return;
   const double d2r = M_PI / 180.0;
   world_from_board_ = Eigen::Isometry3d::Identity();
   world_from_board_.linear() = (Eigen::AngleAxisd(p[5] * d2r, Eigen::Vector3d::UnitZ()) *

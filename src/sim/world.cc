@@ -81,6 +81,24 @@ Status SimWorld::PlaceBoard(int index) {
   return Status::Ok();
 }
 
+Status SimWorld::PlaceBoardOnPlate() {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  if (!options_.board.present) return FailedPrecondition("there is no calibration board");
+  const auto& p = options_.board.plate_pose;
+  scene_->SetBoardPose(options_.board, {p[0], p[1], scene_->stage_z() + p[2], 0.0, 0.0, p[3]});
+  ambient_valid_ = false;
+  now_s_ += 5.0;  // the operator's hands
+  return Status::Ok();
+}
+
+void SimWorld::FreshPlate() {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  marks_ = std::make_unique<MarkMap>();
+  pulses_.clear();
+  ambient_valid_ = false;
+  now_s_ += 30.0;  // the operator's hands
+}
+
 int SimWorld::board_pose_count() const {
   return options_.board.present ? static_cast<int>(options_.board.poses.size()) : 0;
 }

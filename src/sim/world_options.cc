@@ -156,6 +156,12 @@ Status BoardOptions::Validate() const {
     return Bad("albedo_dark", "in [0, albedo_light)", albedo_dark);
   }
   if (poses.empty()) return InvalidArgument("poses must list at least one pose");
+  for (double v : plate_pose) {
+    if (!std::isfinite(v)) return InvalidArgument("plate_pose must be finite numbers");
+  }
+  if (!(plate_pose[2] >= 0 && plate_pose[2] < 50)) {
+    return Bad("plate_pose", "a height above the plate in [0, 50) mm", plate_pose[2]);
+  }
   for (const auto& p : poses) {
     for (double v : p) {
       if (!std::isfinite(v)) return InvalidArgument("poses must be finite numbers");

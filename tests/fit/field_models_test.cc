@@ -136,6 +136,36 @@ TEST(FieldModels, PhysicsPlusTableTakesWhatPhysicsLeaves) {
   EXPECT_NEAR((both->Predict(cmd) - Vector2d(40.0, -25.0)).norm(), 0.0, 1e-6);
 }
 
+// The pointer through the fitted head: its misalignment and lateral colour from its spots.
+TEST(FieldModels, BeamPathOfThePointer) {
+  const optics::HeadModel head = AsBuilt();
+  optics::BeamPath truth;
+  truth.offset_x_mrad = 0.12;
+  truth.offset_y_mrad = -0.08;
+  truth.lateral_colour_pct = -0.35;
+  std::vector<GalvoSample> spots;
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0.0, 0.005);  // pointer spots: ~5 um centroids
+  for (double x = -40; x <= 40; x += 20) {
+    for (double y = -40; y <= 40; y += 20) {
+      for (double z : {0.0, 10.0}) {
+        optics::ChiefRay ray;
+        ASSERT_TRUE(head.Land({x, y, z}, truth, &ray));
+        const Vector3d p = ray.AtHeight(z);
+        spots.push_back({{x, y, z}, p.head<2>() + Vector2d(noise(rng), noise(rng))});
+      }
+    }
+  }
+  auto fit = FitBeamPath(head, spots);
+  ASSERT_TRUE(fit.ok()) << fit.status().ToString();
+  // 50 spots at 5 um: the offset to ~5 um / 255 mm / sqrt(50) ~ 3e-3 mrad; 5 sigma.
+  EXPECT_NEAR(fit->path.offset_x_mrad, 0.12, 5 * fit->stderr_offset_x_mrad);
+  EXPECT_NEAR(fit->path.offset_y_mrad, -0.08, 5 * fit->stderr_offset_y_mrad);
+  EXPECT_NEAR(fit->path.lateral_colour_pct, -0.35, 5 * fit->stderr_lateral_colour_pct);
+  EXPECT_LT(fit->stderr_lateral_colour_pct, 0.01);
+  EXPECT_NEAR(fit->rms_mm, 0.005 * std::sqrt(2.0), 0.002);
+}
+
 TEST(FieldModels, BadGridsAreNamed) {
   std::vector<GalvoSample> nodes = {{{0, 0, 0}, {0, 0}}, {{10, 0, 0}, {10, 0}}, {{0, 10, 0}, {0, 10}}};
   auto m = BilinearFieldModel::Fit(nodes);

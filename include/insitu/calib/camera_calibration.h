@@ -5,6 +5,7 @@
 // calibration that fails leaves nothing half-made for the caller to save.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -74,5 +75,26 @@ struct AlignmentSummary {
 AlignmentSummary AlignCameraToGalvo(const std::vector<GalvoSpot>& spots,
                                     const CameraIntrinsics& camera,
                                     const AlignmentOptions& options);
+
+// The stage plate's plane as the camera sees it, from one view of the chessboard lying flat on
+// the plate (metric: the board's squares, not the scan head, give the scale). Plate frame: x,
+// y along the board's rows and columns (origin at its first inner corner), z = 0 the plate's
+// top, `thickness_mm` under the board's printed face, +z toward the camera.
+struct PlatePoseSummary {
+  bool ok = false;
+  std::string message;
+  Eigen::Isometry3d camera_from_plate = Eigen::Isometry3d::Identity();
+  double rms_px = 0.0;  // corner reprojection
+};
+PlatePoseSummary PlateFromBoard(const std::vector<Eigen::Vector2d>& corners,
+                                const BoardGeometry& board, const CameraIntrinsics& camera,
+                                double thickness_mm);
+
+// Where the rays of `pixels` (full-sensor pixels of `camera`) meet the plane z = 0 of a frame
+// the camera sees at `camera_from_plane`: (x, y) in that frame, mm. Empty for a ray parallel to
+// the plane or meeting it behind the camera.
+std::vector<std::optional<Eigen::Vector2d>> PixelsOnPlane(
+    const std::vector<Eigen::Vector2d>& pixels, const CameraIntrinsics& camera,
+    const Eigen::Isometry3d& camera_from_plane);
 
 }  // namespace insitu::calib

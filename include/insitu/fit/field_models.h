@@ -154,6 +154,18 @@ class PhysicsPlusTableModel : public FieldModel {
   BilinearFieldModel residual_;
 };
 
+// The path of a second beam through a known head (the red pointer against the marking laser
+// the head was fitted to): its input misalignment and lateral colour, from where its spots were
+// measured (galvo frame). Errors: failed_precondition for fewer than 3 spots, or when the solver
+// does not converge.
+struct BeamPathFit {
+  optics::BeamPath path;
+  double stderr_offset_x_mrad = 0, stderr_offset_y_mrad = 0, stderr_lateral_colour_pct = 0;
+  double rms_mm = 0.0;  // of the spots about the fitted path
+};
+Result<BeamPathFit> FitBeamPath(const optics::HeadModel& head,
+                                const std::vector<GalvoSample>& spots);
+
 // rms and max of |meas - model.Predict(cmd)| over samples (galvo frame), mm.
 struct ModelError {
   double rms_mm = 0.0;

@@ -18,6 +18,11 @@ class Operator {
   // Errors: failed_precondition if the cell has no board, cancelled if the operator aborts.
   virtual Status PlaceBoard(int view, int views) = 0;
   virtual Status RemoveBoard() = 0;
+  // "Lay the board flat on the stage plate, near the field centre, printed side up."
+  virtual Status PlaceBoardOnPlate() = 0;
+  // "Put a fresh sacrificial plate on the stage (anodised aluminium), top at the plate's
+  // height": the field calibration marks its targets on it.
+  virtual Status FreshPlate() = 0;
   // "Take every part off the stage": calibrations that need the bare plate ask for this.
   virtual Status ClearTable() = 0;
 };

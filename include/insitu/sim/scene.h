@@ -49,6 +49,8 @@ class Scene {
 
   // The chessboard target at pose `index` of options.poses; index < 0 takes it away.
   void SetBoard(const BoardOptions& options, int index);
+  // The board at an explicit pose [x, y, z, rx, ry, rz] (mm, deg), as BoardOptions::poses.
+  void SetBoardPose(const BoardOptions& options, const std::array<double, 6>& pose);
   // Distance (mm, in the board plane) from a point on the board to the nearest edge between
   // squares: where a pixel needs supersampling to image the pattern honestly.
   double BoardEdgeDistance(const Eigen::Vector3d& point_in_world) const;

@@ -131,6 +131,11 @@ class SimWorld {
   // number). Errors: failed_precondition if the world has no board.
   Status PlaceBoard(int index);
   void RemoveBoard();
+  // The operator lays the board flat on the stage plate at board.plate_pose (it rides on the
+  // stage). Errors: failed_precondition if the world has no board.
+  Status PlaceBoardOnPlate();
+  // The operator puts a fresh sacrificial plate on the stage: every mark made so far is gone.
+  void FreshPlate();
   // The operator takes the part off the stage.
   void RemovePart();
   int board_pose_count() const;

@@ -187,6 +187,10 @@ struct BoardOptions {
   double albedo_dark = 0.04;     // printed black
   double albedo_light = 0.80;    // white
   std::vector<std::array<double, 6>> poses{{0.0, 0.0, 0.0, 0.0, 0.0, 0.0}};
+  // Where the operator lays the board flat on the stage plate when asked (field calibration):
+  // [x, y, face height above the plate top, rotation about z] (mm, mm, mm, deg). The printed
+  // board on a 2 mm aluminium sheet, laid by hand near the field centre.
+  std::array<double, 4> plate_pose{4.0, -3.0, 2.0, 1.5};
 
   Status Validate() const;
 };

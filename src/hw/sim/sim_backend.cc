@@ -188,6 +188,11 @@ class SimOperator : public Operator {
     world_->RemoveBoard();
     return Status::Ok();
   }
+  Status PlaceBoardOnPlate() override { return world_->PlaceBoardOnPlate(); }
+  Status FreshPlate() override {
+    world_->FreshPlate();
+    return Status::Ok();
+  }
   Status ClearTable() override {
     world_->RemovePart();
     return Status::Ok();
