@@ -21,9 +21,11 @@ double TurnForSagitta(double rho, double tol) {
 
 Status SpiralTargetOptions::Validate() const {
   if (!(diameter_mm > 0) || !(pitch_mm > 0) || !(chord_tolerance_mm > 0)) {
-    return InvalidArgument("spiral target: diameter_mm, pitch_mm and chord_tolerance_mm must be "
-                           "> 0, got " + std::to_string(diameter_mm) + ", " +
-                           std::to_string(pitch_mm) + ", " + std::to_string(chord_tolerance_mm));
+    return InvalidArgument(
+        "spiral target: diameter_mm, pitch_mm and chord_tolerance_mm must be "
+        "> 0, got " +
+        std::to_string(diameter_mm) + ", " + std::to_string(pitch_mm) + ", " +
+        std::to_string(chord_tolerance_mm));
   }
   if (diameter_mm < 2.0 * pitch_mm) {
     return InvalidArgument("spiral target: diameter_mm " + std::to_string(diameter_mm) +

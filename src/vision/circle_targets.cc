@@ -195,25 +195,24 @@ Result<Conic> FitConic(const std::vector<Eigen::Vector2d>& points, EllipseFit* f
 
 Status CircleTargetOptions::Validate() const {
   if (!(min_diameter_px > 0) || !(max_diameter_px >= min_diameter_px)) {
-    return InvalidArgument(Format(
-        "circle targets: need 0 < min_diameter_px <= max_diameter_px, got %.6g and %.6g",
-        min_diameter_px, max_diameter_px));
+    return InvalidArgument(
+        Format("circle targets: need 0 < min_diameter_px <= max_diameter_px, got %.6g and %.6g",
+               min_diameter_px, max_diameter_px));
   }
   if (max_diameter_px > 2000) {
-    return InvalidArgument(Format("circle targets: max_diameter_px %.6g exceeds 2000",
-                                  max_diameter_px));
+    return InvalidArgument(
+        Format("circle targets: max_diameter_px %.6g exceeds 2000", max_diameter_px));
   }
   if (!(min_contrast_fraction > 0 && min_contrast_fraction <= 1)) {
-    return InvalidArgument(Format("circle targets: min_contrast_fraction %.6g not in (0, 1]",
-                                  min_contrast_fraction));
+    return InvalidArgument(
+        Format("circle targets: min_contrast_fraction %.6g not in (0, 1]", min_contrast_fraction));
   }
   if (!(min_solidity >= 0 && min_solidity <= 1)) {
-    return InvalidArgument(Format("circle targets: min_solidity %.6g not in [0, 1]",
-                                  min_solidity));
+    return InvalidArgument(Format("circle targets: min_solidity %.6g not in [0, 1]", min_solidity));
   }
   if (!(min_axis_ratio >= 0 && min_axis_ratio <= 1)) {
-    return InvalidArgument(Format("circle targets: min_axis_ratio %.6g not in [0, 1]",
-                                  min_axis_ratio));
+    return InvalidArgument(
+        Format("circle targets: min_axis_ratio %.6g not in [0, 1]", min_axis_ratio));
   }
   if (edge_rays < 0 || edge_rays > 4096) {
     return InvalidArgument("circle targets: edge_rays " + std::to_string(edge_rays) +
@@ -237,7 +236,9 @@ Result<std::vector<CircleTarget>> FindCircleTargets(const ImageView& image,
     // Background: opening of a reduced copy (fast at 5 MP: the window is ~12 px there).
     const int reduce = std::max(1, static_cast<int>(o.max_diameter_px / 10.0));
     cv::Mat small;
-    cv::resize(smooth, small, cv::Size(), 1.0 / reduce, 1.0 / reduce, cv::INTER_AREA);
+    cv::resize(smooth, small,
+               cv::Size(std::max(1, image.width / reduce), std::max(1, image.height / reduce)), 0,
+               0, cv::INTER_AREA);
     const int k = 2 * static_cast<int>(std::ceil(0.75 * o.max_diameter_px / reduce)) + 1;
     cv::Mat opened;
     cv::morphologyEx(small, opened, cv::MORPH_OPEN,
@@ -279,19 +280,18 @@ Result<std::vector<CircleTarget>> FindCircleTargets(const ImageView& image,
         continue;
       }
       if (d_eq < o.min_diameter_px) {
-        reject(c0, d_eq, Format("too small: %.1f px across, min_diameter_px %.1f", d_eq,
-                                o.min_diameter_px));
+        reject(c0, d_eq,
+               Format("too small: %.1f px across, min_diameter_px %.1f", d_eq, o.min_diameter_px));
         continue;
       }
       if (d_eq > o.max_diameter_px) {
-        reject(c0, d_eq, Format("too large: %.1f px across, max_diameter_px %.1f", d_eq,
-                                o.max_diameter_px));
+        reject(c0, d_eq,
+               Format("too large: %.1f px across, max_diameter_px %.1f", d_eq, o.max_diameter_px));
         continue;
       }
       const int margin = static_cast<int>(std::ceil(0.75 * std::max(bw, bh))) + 4;
-      const cv::Rect roi =
-          cv::Rect(bx - margin, by - margin, bw + 2 * margin, bh + 2 * margin) &
-          cv::Rect(0, 0, image.width, image.height);
+      const cv::Rect roi = cv::Rect(bx - margin, by - margin, bw + 2 * margin, bh + 2 * margin) &
+                           cv::Rect(0, 0, image.width, image.height);
       const cv::Mat roi_raw = raw(roi), roi_smooth = smooth(roi), roi_labels = labels(roi);
       const cv::Mat own = roi_labels == l;
 
@@ -323,8 +323,9 @@ Result<std::vector<CircleTarget>> FindCircleTargets(const ImageView& image,
       }
       const double bg = Median(&ring), plateau = Median(&inner);
       if (plateau - bg < min_contrast) {
-        reject(c0, d_eq, Format("contrast %.1f gray levels below the least asked for, %.1f",
-                                plateau - bg, min_contrast));
+        reject(c0, d_eq,
+               Format("contrast %.1f gray levels below the least asked for, %.1f", plateau - bg,
+                      min_contrast));
         continue;
       }
       const double half = 0.5 * (bg + plateau);
@@ -355,8 +356,8 @@ Result<std::vector<CircleTarget>> FindCircleTargets(const ImageView& image,
       const double hull_area = cv::contourArea(hull);
       const double solidity = hull_area > 0 ? chosen_area / hull_area : 0.0;
       if (solidity < o.min_solidity) {
-        reject(c0, d_eq, Format("not a solid disc: solidity %.2f below %.2f", solidity,
-                                o.min_solidity));
+        reject(c0, d_eq,
+               Format("not a solid disc: solidity %.2f below %.2f", solidity, o.min_solidity));
         continue;
       }
       cv::Mat filled = cv::Mat::zeros(roi.size(), CV_8U);
@@ -367,8 +368,8 @@ Result<std::vector<CircleTarget>> FindCircleTargets(const ImageView& image,
       const double spread = std::sqrt(0.25 * (mu20 - mu02) * (mu20 - mu02) + mu11 * mu11);
       const double axis_ratio = mid + spread > 0 ? std::sqrt((mid - spread) / (mid + spread)) : 0;
       if (axis_ratio < o.min_axis_ratio) {
-        reject(c0, d_eq, Format("elongated: axis ratio %.2f below %.2f", axis_ratio,
-                                o.min_axis_ratio));
+        reject(c0, d_eq,
+               Format("elongated: axis ratio %.2f below %.2f", axis_ratio, o.min_axis_ratio));
         continue;
       }
       CircleTarget t;
@@ -398,8 +399,10 @@ Result<std::vector<CircleTarget>> FindCircleTargets(const ImageView& image,
         const Eigen::Vector2d dir(std::cos(angle), std::sin(angle));
         for (int s = 0; s < samples; ++s) {
           const Eigen::Vector2d p = c + (r_start - s * kStep) * dir;
-          const int pu = static_cast<int>(std::floor(p.x())), pv = static_cast<int>(std::floor(p.y()));
-          const int nu = static_cast<int>(std::lround(p.x())), nv = static_cast<int>(std::lround(p.y()));
+          const int pu = static_cast<int>(std::floor(p.x())),
+                    pv = static_cast<int>(std::floor(p.y()));
+          const int nu = static_cast<int>(std::lround(p.x())),
+                    nv = static_cast<int>(std::lround(p.y()));
           usable[s] = pu >= 0 && pv >= 0 && pu + 1 < image.width && pv + 1 < image.height;
           if (usable[s]) {
             const int lab = labels.at<int>(nv, nu);
@@ -427,8 +430,9 @@ Result<std::vector<CircleTarget>> FindCircleTargets(const ImageView& image,
       }
       const int found = static_cast<int>(t.edge_px.size());
       if (found < std::max(5, rays / 2)) {
-        reject(c0, d_eq, "edge found on only " + std::to_string(found) + " of " +
-                             std::to_string(rays) + " rays");
+        reject(c0, d_eq,
+               "edge found on only " + std::to_string(found) + " of " + std::to_string(rays) +
+                   " rays");
         continue;
       }
       EllipseFit ellipse;
@@ -449,8 +453,9 @@ Result<std::vector<CircleTarget>> FindCircleTargets(const ImageView& image,
       }
       t.edge_px = std::move(kept);
       if (static_cast<int>(t.edge_px.size()) < std::max(5, rays / 2)) {
-        reject(c0, d_eq, "edge too ragged: " + std::to_string(t.edge_px.size()) + " of " +
-                             std::to_string(rays) + " rays near one ellipse");
+        reject(c0, d_eq,
+               "edge too ragged: " + std::to_string(t.edge_px.size()) + " of " +
+                   std::to_string(rays) + " rays near one ellipse");
         continue;
       }
       targets.push_back(std::move(t));

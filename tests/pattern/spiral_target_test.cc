@@ -97,9 +97,8 @@ TEST(SpiralTarget, ChordErrorWithinTolerance) {
       for (int k = 1; k < 200; ++k) {
         const double th = theta0 + step * k / 200.0;
         const double r = i <= end ? a * th : r_out;
-        worst = std::max(worst,
-                         SegmentDistance(Eigen::Vector2d(r * std::cos(th), r * std::sin(th)), p0,
-                                         p1));
+        worst = std::max(
+            worst, SegmentDistance(Eigen::Vector2d(r * std::cos(th), r * std::sin(th)), p0, p1));
       }
       theta0 += step;
     }
@@ -128,10 +127,14 @@ TEST(SpiralTarget, LineAsWideAsThePitchFillsTheDisc) {
   for (size_t s = 1; s < path->size(); ++s) {
     const Eigen::Vector2d& a = (*path)[s - 1];
     const Eigen::Vector2d& b = (*path)[s];
-    const int i0 = std::max(0, static_cast<int>(std::floor((std::min(a.x(), b.x()) - reach) / cell)) + n);
-    const int i1 = std::min(side - 1, static_cast<int>(std::ceil((std::max(a.x(), b.x()) + reach) / cell)) + n);
-    const int j0 = std::max(0, static_cast<int>(std::floor((std::min(a.y(), b.y()) - reach) / cell)) + n);
-    const int j1 = std::min(side - 1, static_cast<int>(std::ceil((std::max(a.y(), b.y()) + reach) / cell)) + n);
+    const int i0 =
+        std::max(0, static_cast<int>(std::floor((std::min(a.x(), b.x()) - reach) / cell)) + n);
+    const int i1 = std::min(
+        side - 1, static_cast<int>(std::ceil((std::max(a.x(), b.x()) + reach) / cell)) + n);
+    const int j0 =
+        std::max(0, static_cast<int>(std::floor((std::min(a.y(), b.y()) - reach) / cell)) + n);
+    const int j1 = std::min(
+        side - 1, static_cast<int>(std::ceil((std::max(a.y(), b.y()) + reach) / cell)) + n);
     for (int j = j0; j <= j1; ++j) {
       for (int i = i0; i <= i1; ++i) {
         char& c = covered[static_cast<size_t>(j) * side + i];

@@ -54,9 +54,9 @@ double SpiralOuterPathRadius(const SpiralTargetOptions& options);
 Result<std::vector<Eigen::Vector2d>> SpiralTargetPath(const SpiralTargetOptions& options);
 
 struct CrossTargetOptions {
-  double length_mm = 3.0;       // each bar, from one end of the marked line to the other
-  double bar_width_mm = 0.12;   // across a bar, outer edge to outer edge of the marked lines
-  double line_width_mm = 0.035; // of one stroke; strokes are spaced at most this far apart
+  double length_mm = 3.0;        // each bar, from one end of the marked line to the other
+  double bar_width_mm = 0.12;    // across a bar, outer edge to outer edge of the marked lines
+  double line_width_mm = 0.035;  // of one stroke; strokes are spaced at most this far apart
 
   // invalid_argument when a length is not positive, a bar is narrower than one line, or not
   // longer than it is wide.

@@ -15,11 +15,14 @@
 //  * the sub-pixel outer edge: points where the gray level, walking inward along rays from the
 //    centroid, crosses half way between the target's local background and its plateau.
 //
-// None of these pixel positions is the image of the disc's centre: the image of a circle under
-// perspective is an ellipse whose centre lies off the image of the circle's centre, toward the
-// camera, by about R^2 sin(tilt) / D measured on the plate (2.3 um for a 2.5 mm disc seen from
-// 350 mm at 31 deg from the normal), and lens distortion bends the ellipse further. The
-// perspective-correct centre comes from mapping the edge points onto the plate plane
+// None of these pixel positions is the image of the disc's centre. The image of a circle under
+// perspective is an ellipse, and the ellipse's centre is the image of the pole (with respect to
+// the circle) of the line where the plate meets the plane through the camera's centre parallel
+// to the sensor; on the plate that point lies R^2 sin(beta) / Z from the circle's centre,
+// toward the camera (beta: angle between the optical axis and the plate's normal; Z: the
+// target's depth along the axis). For a 2.5 mm disc seen from 350 mm at 31 deg that is 2.3 um,
+// as large as the accuracy a field calibration wants; lens distortion bends the ellipse too.
+// The perspective-correct centre comes from mapping the edge points onto the plate plane
 // (undistort, intersect the pixel rays with the plane) and fitting a circle there with
 // FitCircle: the caller does that, since it holds the calibration.
 #pragma once
@@ -80,8 +83,8 @@ struct CircleTarget {
 // not listed.
 struct RejectedBlob {
   Eigen::Vector2d center_px = Eigen::Vector2d::Zero();  // centroid of its pixels
-  double diameter_px = 0.0;                              // equivalent diameter
-  std::string reason;                                    // one line, with the numbers
+  double diameter_px = 0.0;                             // equivalent diameter
+  std::string reason;                                   // one line, with the numbers
 };
 
 // Finds every light disc-shaped target in the frame (8-bit, or 16-bit holding bit_depth bits).
