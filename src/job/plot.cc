@@ -179,4 +179,56 @@ Status SavePlotPng(const PlotSpec& spec, const std::string& path) {
   return Status::Ok();
 }
 
+Status SaveFieldArrowsPng(const FieldArrows& f, const std::string& path) {
+  const size_t n = f.x_mm.size();
+  if (f.y_mm.size() != n || f.dx_mm.size() != n || f.dy_mm.size() != n) {
+    return InvalidArgument("field arrows: x, y, dx and dy must have the same length");
+  }
+  if (n == 0) return InvalidArgument("field arrows: no targets");
+  Range rx, ry;
+  double max_err = 0;
+  for (size_t i = 0; i < n; ++i) {
+    rx.Add(f.x_mm[i]);
+    ry.Add(f.y_mm[i]);
+    max_err = std::max(max_err, std::hypot(f.dx_mm[i], f.dy_mm[i]));
+  }
+  const double span = std::max(rx.hi - rx.lo, ry.hi - ry.lo);
+  const double cell = span / std::max(1.0, std::sqrt(static_cast<double>(n)) - 1.0);
+  double mag = f.magnification;
+  if (!(mag > 0)) mag = max_err > 0 ? 0.8 * cell / max_err : 1.0;
+  const int w = f.size_px, h = f.size_px + 80;
+  const double margin = 60, scale = (w - 2 * margin) / std::max(span + cell, 1e-9);
+  const double cx = 0.5 * (rx.lo + rx.hi), cy = 0.5 * (ry.lo + ry.hi);
+  // Galvo y up, image v down.
+  const auto px = [&](double x, double y) {
+    return cv::Point2d(0.5 * w + (x - cx) * scale, 40 + 0.5 * (h - 80) - (y - cy) * scale);
+  };
+  try {
+    cv::Mat img(h, w, CV_8UC3, cv::Scalar(255, 255, 255));
+    cv::putText(img, f.title, {20, 28}, cv::FONT_HERSHEY_SIMPLEX, 0.7, {0, 0, 0}, 2, cv::LINE_AA);
+    for (size_t i = 0; i < n; ++i) {
+      const bool chk = i < f.check.size() && f.check[i];
+      const cv::Scalar c = chk ? Bgr(0xd62728) : Bgr(0x1f77b4);
+      const cv::Point2d a = px(f.x_mm[i], f.y_mm[i]);
+      const cv::Point2d b = px(f.x_mm[i] + mag * f.dx_mm[i], f.y_mm[i] + mag * f.dy_mm[i]);
+      cv::circle(img, a, 3, c, cv::FILLED, cv::LINE_AA);
+      if (cv::norm(b - a) > 1.0) cv::arrowedLine(img, a, b, c, 2, cv::LINE_AA, 0, 0.25);
+    }
+    // Scale bar: a round error in um, drawn at the magnification.
+    const double bar_mm = NiceStep(max_err > 0 ? max_err : 1e-3, 1);
+    const cv::Point2d s0(margin, h - 30.0);
+    const cv::Point2d s1 = s0 + cv::Point2d(bar_mm * mag * scale, 0);
+    cv::line(img, s0, s1, {0, 0, 0}, 3, cv::LINE_AA);
+    char text[160];
+    std::snprintf(text, sizeof text, "%g um error (arrows x%.0f); blue: grid, red: check points; largest %.1f um",
+                  bar_mm * 1e3, mag, max_err * 1e3);
+    cv::putText(img, text, {static_cast<int>(s1.x) + 12, static_cast<int>(s0.y) + 6},
+                cv::FONT_HERSHEY_SIMPLEX, 0.5, {0, 0, 0}, 1, cv::LINE_AA);
+    if (!cv::imwrite(path, img)) return DeviceError("cannot write " + path);
+  } catch (const cv::Exception& e) {
+    return DeviceError("cannot write " + path + ": " + e.what());
+  }
+  return Status::Ok();
+}
+
 }  // namespace insitu::job

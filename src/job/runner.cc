@@ -14,6 +14,7 @@
 #include "insitu/job/scan.h"
 #include "insitu/job/step_gauge.h"
 #include "job/calibrate.h"
+#include "job/field_calibration.h"
 #include "job/mark.h"
 #include "job/progress.h"
 #include "job/scan_job.h"
@@ -254,7 +255,7 @@ Result<Report> RunScanJob(const LoadedJob& job, const RunOptions& options) {
 
 }  // namespace
 
-std::vector<std::string> JobKinds() { return {"scan", "accuracy", "calibrate", "mark"}; }
+std::vector<std::string> JobKinds() { return {"scan", "accuracy", "calibrate", "field_calibration", "mark"}; }
 
 namespace {
 
@@ -273,6 +274,7 @@ Status CheckJob(const LoadedJob& job) {
     return ReadScanKinds(job, &spec, &machine_config);
   }
   if (job.kind == "calibrate") return CheckCalibrateJob(job);
+  if (job.kind == "field_calibration") return CheckFieldCalibrationJob(job);
   if (job.kind == "mark") return CheckMarkJob(job);
   return UnknownKind(job);
 }
@@ -280,6 +282,7 @@ Status CheckJob(const LoadedJob& job) {
 Result<Report> RunJob(const LoadedJob& job, const RunOptions& options) {
   if (job.kind == "scan" || job.kind == "accuracy") return RunScanJob(job, options);
   if (job.kind == "calibrate") return RunCalibrateJob(job, options);
+  if (job.kind == "field_calibration") return RunFieldCalibrationJob(job, options);
   if (job.kind == "mark") return RunMarkJob(job, options);
   return UnknownKind(job);
 }

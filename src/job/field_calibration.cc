@@ -1,0 +1,645 @@
+// The field_calibration job: the machine measures its own scan head (seeds 001 and 003).
+//
+//  1. Plate: the operator lays the chessboard flat on the stage plate; its corners give the
+//     camera's pose against the plate (metric: the board's squares give the scale, not the
+//     head), then the board is taken away.
+//  2. Pointer: the red pointer is parked on every grid node; its spots, on the same plate,
+//     give the pointer's path against the marking beam once the head is known.
+//  3. Targets: on a fresh sacrificial plate the marking laser marks seed 003's spiral-filled
+//     discs at an n x n grid of commands and at the centres of the grid's cells (the check
+//     points, never used in a fit), with the head as it is (no correction).
+//  4. Measure: the side camera finds every disc; its sub-pixel edge goes onto the plate plane
+//     and a circle fitted there gives the perspective-correct centre (seed 003's minimum
+//     enclosing circle is reported beside it).
+//  5. Fit: the physical head (optics/scan_head.h, Ceres) on the grid, which also places the
+//     plate frame in the galvo frame; the n x n bilinear lookups, seed 003's quadrant fit and
+//     physics plus a table of what it leaves are compared at the check points.
+//  6. Close the loop (seed 001's second pass): a fresh plate, the same targets marked through
+//     the correction, measured again in the same frame: before and after at the check points.
+//  7. The machine calibration gets the measured head, the pointer's path and the camera's pose
+//     in the galvo frame (camera from plate, plate from galvo), so every later scan and mark
+//     uses what was measured. Nothing is written unless every step succeeded.
+#include "job/field_calibration.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <optional>
+#include <sstream>
+
+#include "insitu/calib/calibration.h"
+#include "insitu/calib/camera_calibration.h"
+#include "insitu/core/file.h"
+#include "insitu/core/log.h"
+#include "insitu/fit/field_models.h"
+#include "insitu/hw/lmc_cor.h"
+#include "insitu/job/plot.h"
+#include "insitu/pattern/correction_table.h"
+#include "insitu/pattern/spiral_target.h"
+#include "insitu/vision/circle_targets.h"
+#include "insitu/vision/targets.h"
+#include "job/progress.h"
+
+namespace insitu::job {
+namespace {
+
+using Eigen::Vector2d;
+using Eigen::Vector3d;
+
+struct FieldSpec {
+  MachineSpec machine;
+  int n = 11;                    // grid nodes per side
+  double half_size_mm = 60.0;    // grid from -half to +half in x and y
+  bool check_points = true;      // the cell centres, measured but never fitted
+  pattern::SpiralTargetOptions spiral;
+  double mark_speed_mm_per_s = 1000.0;
+  double jump_speed_mm_per_s = 5000.0;
+  double laser_power = 0.5;
+  double laser_frequency_khz = 30.0;
+  calib::BoardGeometry board{9, 6, 8.0};
+  double board_thickness_mm = 2.0;
+  double board_exposure_ms = 300.0;
+  double target_exposure_ms = 300.0;
+  bool pointer = true;
+  double pointer_exposure_ms = 0.5;
+  bool verify = true;            // the second pass
+  fit::HeadFitOptions head_fit;
+  bool residual_table = true;    // physics plus a table of what it leaves
+  int correction_nodes = 65;     // correction.csv: nodes per side over the grid
+  std::string output_path;
+};
+
+std::string Num(double v, int digits = 3) {
+  char b[48];
+  std::snprintf(b, sizeof b, "%.*f", digits, v);
+  return b;
+}
+
+Status ReadSpec(const LoadedJob& job, FieldSpec* s, hw::MachineConfig* machine) {
+  ConfigReader r(job.root);
+  ReadJobHeader(r, job, &s->machine);
+  ConfigReader& g = r.Section("grid");
+  g.Read("n", &s->n);
+  g.Read("half_size_mm", &s->half_size_mm);
+  g.Read("check_points", &s->check_points);
+  if (g.ok() && (s->n < 5 || s->n > 65)) g.Fail("n", "must be in 5..65");
+  if (g.ok() && !(s->half_size_mm > 0)) g.Fail("half_size_mm", "must be > 0");
+  ConfigReader& t = r.Section("target");
+  std::string kind = "spiral";
+  t.ReadEnum("kind", &kind, {"spiral"});
+  t.Read("diameter_mm", &s->spiral.diameter_mm);
+  t.Read("pitch_mm", &s->spiral.pitch_mm);
+  t.Read("exposure_ms", &s->target_exposure_ms);
+  if (t.ok()) t.FailFromValidate(s->spiral.Validate());
+  if (t.ok() && !(s->target_exposure_ms > 0)) t.Fail("exposure_ms", "must be > 0");
+  ConfigReader& m = r.Section("marking");
+  m.Read("mark_speed_mm_per_s", &s->mark_speed_mm_per_s);
+  m.Read("jump_speed_mm_per_s", &s->jump_speed_mm_per_s);
+  m.Read("power", &s->laser_power);
+  m.Read("frequency_khz", &s->laser_frequency_khz);
+  if (m.ok() && !(s->mark_speed_mm_per_s > 0)) m.Fail("mark_speed_mm_per_s", "must be > 0");
+  if (m.ok() && !(s->jump_speed_mm_per_s > 0)) m.Fail("jump_speed_mm_per_s", "must be > 0");
+  if (m.ok() && !(s->laser_power > 0 && s->laser_power <= 1)) m.Fail("power", "must be in (0, 1]");
+  if (m.ok() && !(s->laser_frequency_khz > 0)) m.Fail("frequency_khz", "must be > 0");
+  ConfigReader& b = r.Section("board");
+  b.Read("inner_cols", &s->board.inner_cols);
+  b.Read("inner_rows", &s->board.inner_rows);
+  b.Read("square_mm", &s->board.square_mm);
+  b.Read("thickness_mm", &s->board_thickness_mm);
+  b.Read("exposure_ms", &s->board_exposure_ms);
+  if (b.ok() && (s->board.inner_cols < 3 || s->board.inner_rows < 3)) {
+    b.Fail("inner_cols", "must be >= 3 (and inner_rows)");
+  }
+  if (b.ok() && !(s->board.square_mm > 0)) b.Fail("square_mm", "must be > 0");
+  if (b.ok() && !(s->board_thickness_mm >= 0)) b.Fail("thickness_mm", "must be >= 0");
+  if (b.ok() && !(s->board_exposure_ms > 0)) b.Fail("exposure_ms", "must be > 0");
+  if (r.Has("pointer")) {
+    ConfigReader& p = r.Section("pointer");
+    p.Read("enabled", &s->pointer);
+    p.Read("exposure_ms", &s->pointer_exposure_ms);
+    if (p.ok() && !(s->pointer_exposure_ms > 0)) p.Fail("exposure_ms", "must be > 0");
+  }
+  if (r.Has("fit")) {
+    ConfigReader& f = r.Section("fit");
+    f.Read("focal_length", &s->head_fit.fit_focal_length);
+    f.Read("ftheta_distortion", &s->head_fit.fit_ftheta_distortion);
+    f.Read("axis_tilt", &s->head_fit.fit_axis_tilt);
+    f.Read("zero_offsets", &s->head_fit.fit_zero_offsets);
+    f.Read("residual_table", &s->residual_table);
+  }
+  r.Read("verify", &s->verify);
+  ConfigReader& out = r.Section("output");
+  out.Require("calibration");
+  std::string path;
+  out.Read("calibration", &path);
+  out.Read("correction_nodes", &s->correction_nodes);
+  if (out.ok() && (s->correction_nodes < 2 || s->correction_nodes > 257)) {
+    out.Fail("correction_nodes", "must be in 2..257");
+  }
+  s->output_path = ResolvePath(job.folder, path);
+  INSITU_RETURN_IF_ERROR(r.Finish());
+  return MachineConfigFor(job, s->machine, machine);
+}
+
+vision::ImageView View(const Frame& f) {
+  return {f.bytes.data(), f.width, f.height, f.stride_bytes(), f.bit_depth};
+}
+
+struct Target {
+  Vector2d nominal;         // where it is asked for, galvo frame
+  bool check = false;
+  Vector3d command;         // what was sent
+  std::optional<Vector2d> plate;      // measured centre, plate frame (edge circle)
+  std::optional<Vector2d> plate_mec;  // seed 003's centre (minimum enclosing circle), plate frame
+};
+
+std::vector<Target> Layout(const FieldSpec& s) {
+  std::vector<Target> t;
+  const double step = 2.0 * s.half_size_mm / (s.n - 1);
+  for (int j = 0; j < s.n; ++j) {
+    for (int i = 0; i < s.n; ++i) {
+      t.push_back({{-s.half_size_mm + i * step, -s.half_size_mm + j * step}, false, {}, {}, {}});
+    }
+  }
+  if (s.check_points) {
+    for (int j = 0; j + 1 < s.n; ++j) {
+      for (int i = 0; i + 1 < s.n; ++i) {
+        t.push_back({{-s.half_size_mm + (i + 0.5) * step, -s.half_size_mm + (j + 0.5) * step},
+                     true, {}, {}, {}});
+      }
+    }
+  }
+  return t;
+}
+
+// The list that marks every target: each disc's spiral through the local linear map of the
+// correction at its centre (the correction varies by < 1e-2 over a disc, so its centre lands
+// where the correction sends it and the disc keeps its shape to a few micrometres).
+using CommandMap = std::function<bool(const Vector3d&, Vector3d*)>;
+Result<hw::GalvoList> TargetList(const FieldSpec& s, const std::vector<Eigen::Vector2d>& spiral,
+                                 std::vector<Target>* targets, const CommandMap& command_for) {
+  hw::GalvoList list;
+  list.mark_speed_mm_per_s = s.mark_speed_mm_per_s;
+  list.jump_speed_mm_per_s = s.jump_speed_mm_per_s;
+  list.laser_power = s.laser_power;
+  list.laser_frequency_khz = s.laser_frequency_khz;
+  constexpr double kH = 0.5;  // mm: the local map's finite-difference step
+  for (Target& t : *targets) {
+    const Vector3d c(t.nominal.x(), t.nominal.y(), 0.0);
+    Vector3d c0, cx, cy;
+    if (!command_for(c, &c0) || !command_for(c + Vector3d(kH, 0, 0), &cx) ||
+        !command_for(c + Vector3d(0, kH, 0), &cy)) {
+      return OutOfRange("the correction cannot reach the target at (" + Num(c.x()) + ", " +
+                        Num(c.y()) + ") mm");
+    }
+    Eigen::Matrix2d j;
+    j.col(0) = (cx - c0).head<2>() / kH;
+    j.col(1) = (cy - c0).head<2>() / kH;
+    t.command = c0;
+    for (size_t k = 0; k < spiral.size(); ++k) {
+      const Vector2d p = c0.head<2>() + j * spiral[k];
+      list.entries.push_back({k == 0 ? hw::GalvoListEntry::Kind::kJump : hw::GalvoListEntry::Kind::kMark,
+                              Vector3d(p.x(), p.y(), 0.0)});
+    }
+  }
+  return list;
+}
+
+// Finds the targets in a frame and measures each centre on the plate. Each expected target
+// is matched to the detection nearest its predicted pixel, within 40 % of the grid pitch
+// (seed 001 sec. 3.3: the error must stay under half the pitch or the match is ambiguous).
+Status MeasureTargets(const Frame& frame, const calib::CameraIntrinsics& cam,
+                      const Eigen::Isometry3d& camera_from_plate,
+                      const Eigen::Isometry3d& camera_from_galvo_guess, double pitch_mm,
+                      const vision::CircleTargetOptions& options, std::vector<Target>* targets,
+                      std::vector<std::string>* warnings, int* found) {
+  std::vector<vision::RejectedBlob> rejected;
+  INSITU_ASSIGN_OR_RETURN(std::vector<vision::CircleTarget> blobs,
+                          vision::FindCircleTargets(View(frame), options, &rejected));
+  std::vector<Vector2d> blob_px;
+  for (const vision::CircleTarget& b : blobs) blob_px.push_back(b.centroid_px);
+  std::vector<bool> used(blobs.size(), false);
+  *found = 0;
+  for (Target& t : *targets) {
+    t.plate.reset();
+    t.plate_mec.reset();
+    const Vector3d in_cam = camera_from_galvo_guess * Vector3d(t.nominal.x(), t.nominal.y(), 0.0);
+    const Vector2d predicted = cam.Project(in_cam);
+    const Vector3d in_cam_next =
+        camera_from_galvo_guess * Vector3d(t.nominal.x() + pitch_mm, t.nominal.y(), 0.0);
+    const double pitch_px = (cam.Project(in_cam_next) - predicted).norm();
+    int best = -1;
+    double best_d = 0.4 * pitch_px;
+    for (size_t k = 0; k < blobs.size(); ++k) {
+      const double d = (blob_px[k] - predicted).norm();
+      if (d < best_d && !used[k]) {
+        best = static_cast<int>(k);
+        best_d = d;
+      }
+    }
+    const std::string where = (t.check ? "check point (" : "target (") + Num(t.nominal.x(), 2) +
+                              ", " + Num(t.nominal.y(), 2) + ") mm near pixel (" +
+                              Num(predicted.x(), 0) + ", " + Num(predicted.y(), 0) + ")";
+    if (best < 0) {
+      std::string why;
+      for (const vision::RejectedBlob& r : rejected) {
+        if ((r.center_px - predicted).norm() < 0.4 * pitch_px) why = ": a blob there was rejected: " + r.reason;
+      }
+      warnings->push_back(where + " not found" + why);
+      continue;
+    }
+    used[best] = true;
+    const vision::CircleTarget& b = blobs[best];
+    std::vector<Vector2d> edge_mm;
+    for (const auto& p : calib::PixelsOnPlane(b.edge_px, cam, camera_from_plate)) {
+      if (p) edge_mm.push_back(*p);
+    }
+    auto circle = vision::FitCircle(edge_mm);
+    if (!circle.ok()) {
+      warnings->push_back(where + ": its edge gives no circle: " + circle.status().message());
+      continue;
+    }
+    t.plate = circle->center;
+    const auto mec = calib::PixelsOnPlane({b.mec_center_px}, cam, camera_from_plate);
+    if (mec[0]) t.plate_mec = *mec[0];
+    ++*found;
+  }
+  return Status::Ok();
+}
+
+struct ErrorStats {
+  double rms_um = 0, max_um = 0;
+  int n = 0;
+};
+ErrorStats Stats(const std::vector<fit::GalvoSample>& s) {
+  const fit::ModelError e = fit::NominalError(s);
+  return {e.rms_mm * 1e3, e.max_mm * 1e3, static_cast<int>(s.size())};
+}
+
+Status WriteFieldCsv(const std::vector<Target>& targets, const Eigen::Isometry2d& galvo_from_plate,
+                     const std::string& path) {
+  std::ostringstream os;
+  os.precision(10);
+  os << "# insitu field calibration: commanded vs measured target centres, galvo frame, mm\n"
+     << "# check = 1: a check point, never used in a fit\n"
+     << "x_cmd_mm,y_cmd_mm,x_meas_mm,y_meas_mm,check\n";
+  for (const Target& t : targets) {
+    if (!t.plate) continue;
+    const Vector2d m = galvo_from_plate * *t.plate;
+    os << t.command.x() << "," << t.command.y() << "," << m.x() << "," << m.y() << ","
+       << (t.check ? 1 : 0) << "\n";
+  }
+  return WriteFileAtomically(path, os.str());
+}
+
+}  // namespace
+
+Status CheckFieldCalibrationJob(const LoadedJob& job) {
+  FieldSpec spec;
+  hw::MachineConfig config;
+  return ReadSpec(job, &spec, &config);
+}
+
+Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& options) {
+  const auto wall_start = std::chrono::steady_clock::now();
+  FieldSpec spec;
+  hw::MachineConfig config;
+  INSITU_RETURN_IF_ERROR(ReadSpec(job, &spec, &config));
+  auto previous = calib::LoadCalibration(spec.machine.calibration_path);
+  if (!previous.ok()) return previous.status().Prefixed(job.path + ": machine.calibration");
+  INSITU_ASSIGN_OR_RETURN(auto spiral, pattern::SpiralTargetPath(spec.spiral));
+  INSITU_ASSIGN_OR_RETURN(hw::Machine machine, hw::CreateMachine(config));
+  const hw::CameraInfo info = machine.camera->info();
+  INSITU_RETURN_IF_ERROR(calib::CheckCameraMatches(previous->camera, info.model, info.serial,
+                                                   info.sensor_width_px, info.sensor_height_px)
+                             .Prefixed(job.path + ": machine.calibration"));
+  const hw::ScannerInfo head_info = machine.scanner->info();
+  const double reach = spec.half_size_mm + 0.5 * spec.spiral.diameter_mm;
+  if (head_info.field_half_size_mm > 0 && reach > head_info.field_half_size_mm) {
+    return InvalidArgument(job.path + ": grid.half_size_mm: the grid with its targets reaches " +
+                           Num(reach, 2) + " mm, beyond the head's field of +-" +
+                           Num(head_info.field_half_size_mm, 2) + " mm");
+  }
+  INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir));
+  const std::filesystem::path dir(options.out_dir);
+  auto finish = [&](bool ok, const std::string& error) {
+    return FinishReport(report, ok, error, wall_start, options.out_dir,
+                        StatusCode::kFailedPrecondition);
+  };
+  const auto cancelled = [&] { return options.cancel != nullptr && options.cancel->load(); };
+  auto log = Logger("job");
+  if (previous->produced_by == "as_designed") {
+    report.warnings.push_back(
+        "the calibration is the as-designed file: run the calibrate job first (the camera's "
+        "intrinsics measure the targets)");
+  }
+  const calib::CameraIntrinsics& cam = previous->camera;
+  const double pitch = 2.0 * spec.half_size_mm / (spec.n - 1);
+
+  // 1. The plate's plane from the board lying on it.
+  for (const Status& st : {machine.camera->SetBinning(1), machine.stage->MoveTo(0.0),
+                           machine.scanner->StopPointer(), machine.person->ClearTable(),
+                           machine.person->PlaceBoardOnPlate(),
+                           machine.camera->SetExposure(spec.board_exposure_ms * 1e3)}) {
+    if (!st.ok()) return finish(false, "plate: " + st.ToString());
+  }
+  auto board_frame = machine.camera->Grab();
+  if (!board_frame.ok()) return finish(false, "plate: " + board_frame.status().ToString());
+  auto corners = vision::FindChessboard(View(*board_frame),
+                                        {spec.board.inner_cols, spec.board.inner_rows});
+  (void)machine.person->RemoveBoard();
+  if (!corners.ok()) {
+    return finish(false, "no plate plane: the board lying on the plate was not found: " +
+                             corners.status().message());
+  }
+  const calib::PlatePoseSummary plate =
+      calib::PlateFromBoard(*corners, spec.board, cam, spec.board_thickness_mm);
+  if (!plate.ok) return finish(false, "no plate plane: " + plate.message);
+  report.metrics["plate_board_rms_px"] = plate.rms_px;
+  log->info("plate: board found, corner reprojection {:.3f} px rms", plate.rms_px);
+
+  // 2. The pointer on every grid node, on the fresh plate.
+  const Status fresh = machine.person->FreshPlate();
+  if (!fresh.ok()) return finish(false, "plate: " + fresh.ToString());
+  std::vector<Target> targets = Layout(spec);
+  struct PointerSpot {
+    Vector3d cmd;
+    Vector2d plate;
+  };
+  std::vector<PointerSpot> pointer_spots;
+  if (spec.pointer) {
+    const Status ex = machine.camera->SetExposure(spec.pointer_exposure_ms * 1e3);
+    if (!ex.ok()) return finish(false, "pointer: " + ex.ToString());
+    auto dark = machine.camera->Grab();
+    if (!dark.ok()) return finish(false, "pointer: " + dark.status().ToString());
+    PhaseProgress progress(options, "pointer", "spots", spec.n * spec.n);
+    int k = 0;
+    for (const Target& t : targets) {
+      if (t.check) continue;
+      if (cancelled()) return finish(false, "cancelled");
+      const Vector3d p(t.nominal.x(), t.nominal.y(), 0.0);
+      const Status on = machine.scanner->StartPointerLine(p, p, 1.0);
+      if (!on.ok()) return finish(false, "pointer: " + on.ToString());
+      machine.clock->SleepFor(0.005);
+      auto lit = machine.camera->Grab();
+      if (!lit.ok()) return finish(false, "pointer: " + lit.status().ToString());
+      auto spot = vision::FindSpot(View(*lit), View(*dark), {});
+      progress.Update(++k);
+      if (!spot.ok()) {
+        report.warnings.push_back("pointer spot at (" + Num(p.x(), 2) + ", " + Num(p.y(), 2) +
+                                  ") mm: " + spot.status().message());
+        continue;
+      }
+      const auto on_plate = calib::PixelsOnPlane({spot->center}, cam, plate.camera_from_plate);
+      if (on_plate[0]) pointer_spots.push_back({p, *on_plate[0]});
+    }
+    (void)machine.scanner->StopPointer();
+  }
+
+  // 3-4. Mark the targets as the head is, and measure them.
+  vision::CircleTargetOptions find;
+  {
+    // Expected disc diameter in pixels, from the camera's scale at the field centre.
+    const Vector3d c0 = previous->galvo.camera_from_galvo * Vector3d::Zero();
+    const double px_per_mm = cam.fx / c0.z();
+    const double d_px = spec.spiral.diameter_mm * px_per_mm;
+    find.min_diameter_px = std::max(4.0, 0.5 * d_px);
+    find.max_diameter_px = 2.0 * d_px;
+  }
+  const auto mark_and_measure = [&](const std::string& pass, const CommandMap& command_for,
+                                    int* found) -> Status {
+    auto list = TargetList(spec, spiral, &targets, command_for);
+    if (!list.ok()) return list.status();
+    hw::ListControl control;
+    control.abort = options.cancel;
+    PhaseProgress progress(options, pass, "list", 1.0);
+    control.progress = [&](double f) { progress.Update(f); };
+    INSITU_RETURN_IF_ERROR(machine.scanner->Arm());
+    const Status ran = machine.scanner->ExecuteList(*list, control);
+    (void)machine.scanner->Disarm();
+    INSITU_RETURN_IF_ERROR(ran);
+    INSITU_RETURN_IF_ERROR(machine.camera->SetExposure(spec.target_exposure_ms * 1e3));
+    auto frame = machine.camera->Grab();
+    if (!frame.ok()) return frame.status();
+    return MeasureTargets(*frame, cam, plate.camera_from_plate, previous->galvo.camera_from_galvo,
+                          pitch, find, &targets, &report.warnings, found);
+  };
+  int found_before = 0;
+  const Status first = mark_and_measure("targets", [](const Vector3d& p, Vector3d* c) {
+    *c = p;
+    return true;
+  }, &found_before);
+  if (!first.ok()) return finish(false, "targets: " + first.ToString());
+  const int expected = static_cast<int>(targets.size());
+  report.metrics["targets_expected"] = expected;
+  report.metrics["targets_found"] = found_before;
+  log->info("targets: {} of {} found", found_before, expected);
+
+  // 5. Fit on the grid; everything else judged at the check points.
+  std::vector<fit::TargetSample> grid, check;
+  std::vector<std::string> missing;
+  for (const Target& t : targets) {
+    if (!t.plate) {
+      if (!t.check) missing.push_back("(" + Num(t.nominal.x(), 2) + ", " + Num(t.nominal.y(), 2) + ")");
+      continue;
+    }
+    (t.check ? check : grid).push_back({t.command, *t.plate});
+  }
+  if (!missing.empty()) {
+    std::string list;
+    for (size_t i = 0; i < missing.size() && i < 8; ++i) list += (i ? ", " : "") + missing[i];
+    if (missing.size() > 8) list += ", ...";
+    return finish(false, "targets not found: " + std::to_string(missing.size()) + " of the " +
+                             std::to_string(spec.n * spec.n) + " grid targets (" + list +
+                             " mm; the warnings say where and why); the grid must be complete");
+  }
+  auto physics = fit::HeadFieldFit::Fit(grid, previous->head.model.design, spec.head_fit);
+  if (!physics.ok()) return finish(false, "fit: " + physics.status().ToString());
+  for (const fit::HeadParamFit& p : physics->params()) {
+    report.metrics["head_" + p.name] = p.value;
+    report.metrics["head_" + p.name + "_stderr"] = p.stderr_value;
+  }
+  const std::vector<fit::GalvoSample> grid_g = physics->ToGalvo(grid);
+  const std::vector<fit::GalvoSample> check_g = physics->ToGalvo(check);
+  const std::vector<fit::GalvoSample>& judge = check_g.empty() ? grid_g : check_g;
+  if (check_g.empty()) {
+    report.warnings.push_back("no check points: the models are judged on the grid they were fitted to");
+  }
+  const ErrorStats before = Stats(judge);
+  report.metrics["check_points"] = static_cast<double>(check_g.size());
+  report.metrics["field_error_rms_um_before"] = before.rms_um;
+  report.metrics["field_error_max_um_before"] = before.max_um;
+  report.metrics["physics_fit_rms_um"] = physics->rms_mm() * 1e3;
+  // Seed 003's table: each model's error at the check points (prediction of where the
+  // command lands; correcting with it leaves this to first order).
+  const auto model_metric = [&](const std::string& key, const fit::FieldModel& m) {
+    report.metrics["model_" + key + "_rms_um"] = fit::PredictionError(m, judge).rms_mm * 1e3;
+    report.metrics["model_" + key + "_max_um"] = fit::PredictionError(m, judge).max_mm * 1e3;
+  };
+  model_metric("physics", *physics);
+  for (int sub = 3; sub <= spec.n; ++sub) {
+    if ((spec.n - 1) % (sub - 1) != 0) continue;  // a sub-grid of the marked grid
+    const int stride = (spec.n - 1) / (sub - 1);
+    std::vector<fit::GalvoSample> nodes;
+    for (int j = 0; j < spec.n; j += stride) {
+      for (int i = 0; i < spec.n; i += stride) nodes.push_back(grid_g[static_cast<size_t>(j) * spec.n + i]);
+    }
+    auto m = fit::BilinearFieldModel::Fit(nodes);
+    if (m.ok()) model_metric("bilinear_" + std::to_string(sub), *m);
+  }
+  if (spec.n % 2 == 1) {
+    auto q = fit::QuadrantFieldModel::Fit(grid_g, spec.half_size_mm, spec.half_size_mm);
+    if (q.ok()) model_metric("quadrant", *q);
+  }
+  std::optional<fit::PhysicsPlusTableModel> combined;
+  if (spec.residual_table) {
+    auto both = fit::PhysicsPlusTableModel::Fit(*physics, grid_g);
+    if (!both.ok()) return finish(false, "fit: " + both.status().ToString());
+    combined = std::move(*both);
+    model_metric("physics_table", *combined);
+  }
+  const fit::FieldModel& chosen = combined ? static_cast<const fit::FieldModel&>(*combined)
+                                           : static_cast<const fit::FieldModel&>(*physics);
+  log->info("field: {:.1f} um rms before at {} check points; physics leaves {:.1f} um", before.rms_um,
+            check_g.size(), fit::PredictionError(*physics, judge).rms_mm * 1e3);
+
+  // The measured head as the calibration holds it.
+  calib::HeadCalibration head = previous->head;
+  head.measured = true;
+  head.measured_by = "field_calibration job " + job.path;
+  head.model = physics->head();
+  head.residual_mm = combined ? combined->residual().table() : optics::GridTable();
+  if (!pointer_spots.empty()) {
+    std::vector<fit::GalvoSample> spots;
+    for (const PointerSpot& p : pointer_spots) spots.push_back({p.cmd, physics->galvo_from_plate() * p.plate});
+    auto path = fit::FitBeamPath(head.model, spots);
+    if (!path.ok()) return finish(false, "pointer: " + path.status().ToString());
+    head.pointer = path->path;
+    report.metrics["pointer_offset_x_mrad"] = path->path.offset_x_mrad;
+    report.metrics["pointer_offset_y_mrad"] = path->path.offset_y_mrad;
+    report.metrics["pointer_lateral_colour_pct"] = path->path.lateral_colour_pct;
+    report.metrics["pointer_fit_rms_um"] = path->rms_mm * 1e3;
+    report.metrics["pointer_spots"] = static_cast<double>(spots.size());
+  }
+  // Every corrected command of the field must be one the head can take.
+  const CommandMap corrected = [&](const Vector3d& p, Vector3d* c) {
+    return chosen.CommandFor(p, c);
+  };
+  {
+    const int m = spec.correction_nodes;
+    std::vector<double> xs(m), ys(m);
+    std::vector<Vector2d> offsets;
+    for (int i = 0; i < m; ++i) xs[i] = ys[i] = -reach + 2.0 * reach * i / (m - 1);
+    for (double y : ys) {
+      for (double x : xs) {
+        Vector3d c;
+        if (!corrected({x, y, 0.0}, &c) ||
+            (head_info.field_half_size_mm > 0 &&
+             (std::abs(c.x()) > head_info.field_half_size_mm || std::abs(c.y()) > head_info.field_half_size_mm))) {
+          return finish(false, "the correction would send (" + Num(x, 2) + ", " + Num(y, 2) +
+                                   ") mm outside the head's range (+-" +
+                                   Num(head_info.field_half_size_mm, 2) + " mm): reduce grid.half_size_mm");
+        }
+        offsets.push_back(c.head<2>() - Vector2d(x, y));
+      }
+    }
+    auto table = optics::GridTable::Make(xs, ys, offsets);
+    if (!table.ok()) return finish(false, table.status().ToString());
+    const pattern::CorrectionTable correction(*table);
+    if (WriteFileAtomically((dir / "correction.csv").string(), correction.ToCsv()).ok()) {
+      report.artifacts["correction"] = "correction.csv";
+    }
+    if (head_info.field_half_size_mm > 0) {
+      const auto cor = hw::lmc::FromCorrection(
+          [&](double x, double y) {
+            Vector3d c;
+            return corrected({x, y, 0.0}, &c) ? Vector2d(c.head<2>() - Vector2d(x, y)) : Vector2d(0, 0);
+          },
+          2.0 * head_info.field_half_size_mm, hw::lmc::CorFormat::kJcz2);
+      if (hw::lmc::WriteCor((dir / "field.cor").string(), cor).ok()) report.artifacts["field_cor"] = "field.cor";
+    }
+  }
+  if (WriteFieldCsv(targets, physics->galvo_from_plate(), (dir / "field.csv").string()).ok()) {
+    report.artifacts["field"] = "field.csv";
+  }
+  const auto arrows = [&](const std::string& title, double magnification, const std::string& file) {
+    FieldArrows a;
+    a.title = title;
+    a.magnification = magnification;
+    for (const Target& t : targets) {
+      if (!t.plate) continue;
+      const Vector2d m = physics->galvo_from_plate() * *t.plate;
+      a.x_mm.push_back(t.nominal.x());
+      a.y_mm.push_back(t.nominal.y());
+      a.dx_mm.push_back(m.x() - t.nominal.x());
+      a.dy_mm.push_back(m.y() - t.nominal.y());
+      a.check.push_back(t.check);
+    }
+    return SaveFieldArrowsPng(a, (dir / file).string());
+  };
+  if (arrows("field error before correction, " + Num(before.rms_um, 1) + " um rms at the check points",
+             0.0, "field_before.png").ok()) {
+    report.artifacts["field_before"] = "field_before.png";
+  }
+
+  // 6. The second pass through the correction, measured in the same frame.
+  if (spec.verify) {
+    if (cancelled()) return finish(false, "cancelled");
+    const Status again = machine.person->FreshPlate();
+    if (!again.ok()) return finish(false, "second pass: " + again.ToString());
+    int found_after = 0;
+    const Status second = mark_and_measure("corrected targets", corrected, &found_after);
+    if (!second.ok()) return finish(false, "second pass: " + second.ToString());
+    report.metrics["targets_found_after"] = found_after;
+    std::vector<fit::GalvoSample> after_check, after_grid;
+    for (const Target& t : targets) {
+      if (!t.plate) continue;
+      // Asked for the nominal position: the error is measured against it.
+      const fit::GalvoSample s{{t.nominal.x(), t.nominal.y(), 0.0},
+                               physics->galvo_from_plate() * *t.plate};
+      (t.check ? after_check : after_grid).push_back(s);
+    }
+    const ErrorStats after = Stats(after_check.empty() ? after_grid : after_check);
+    report.metrics["field_error_rms_um_after"] = after.rms_um;
+    report.metrics["field_error_max_um_after"] = after.max_um;
+    report.metrics["field_error_rms_um_after_grid"] = Stats(after_grid).rms_um;
+    report.metrics["distortion_removed_pct"] =
+        before.rms_um > 0 ? 100.0 * (1.0 - after.rms_um / before.rms_um) : 0.0;
+    if (arrows("field error after correction, " + Num(after.rms_um, 1) + " um rms at the check points",
+               0.0, "field_after.png").ok()) {
+      report.artifacts["field_after"] = "field_after.png";
+    }
+    log->info("field: {:.1f} um rms after ({:.1f} % removed)", after.rms_um,
+              report.metrics["distortion_removed_pct"]);
+  }
+
+  // 7. The machine calibration: the measured head, and the camera's pose in the galvo frame
+  // through the plate (plate z = galvo z: the plate's top is the focal plane at stage 0).
+  calib::CalibrationSet set = *previous;
+  set.head = head;
+  set.produced_by = previous->produced_by + "; field_calibration job " + job.path;
+  set.created = report.started;
+  Eigen::Isometry3d plate_from_galvo = Eigen::Isometry3d::Identity();
+  const Eigen::Isometry2d pg = physics->galvo_from_plate().inverse();
+  plate_from_galvo.linear().topLeftCorner<2, 2>() = pg.linear();
+  plate_from_galvo.translation().head<2>() = pg.translation();
+  set.galvo.camera_from_galvo = plate.camera_from_plate * plate_from_galvo;
+  const std::string copy = (dir / "calibration.yaml").string();
+  const Status copied = calib::SaveCalibration(set, copy);
+  if (copied.ok()) report.artifacts["calibration_copy"] = "calibration.yaml";
+  const Status saved = calib::SaveCalibration(set, spec.output_path);
+  if (!saved.ok()) {
+    return finish(false, saved.ToString() +
+                             (copied.ok() ? "; the measured calibration is in " + copy : ""));
+  }
+  std::error_code ec;
+  const std::filesystem::path rel = std::filesystem::relative(spec.output_path, options.out_dir, ec);
+  report.artifacts["calibration"] = ec ? spec.output_path : rel.string();
+  return finish(true, "");
+}
+
+}  // namespace insitu::job
