@@ -343,9 +343,13 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
   // 1. The plate's plane from the board lying on it.
   for (const Status& st : {machine.camera->SetBinning(1), machine.stage->MoveTo(0.0),
                            machine.scanner->StopPointer(), machine.person->ClearTable(),
-                           machine.person->PlaceBoardOnPlate(),
                            machine.camera->SetExposure(spec.board_exposure_ms * 1e3)}) {
     if (!st.ok()) return finish(false, "plate: " + st.ToString());
+  }
+  const Status laid = machine.person->PlaceBoardOnPlate();
+  if (!laid.ok()) {
+    return finish(false, "no plate plane: the board could not be laid on the plate: " +
+                             laid.ToString());
   }
   auto board_frame = machine.camera->Grab();
   if (!board_frame.ok()) return finish(false, "plate: " + board_frame.status().ToString());

@@ -1,0 +1,213 @@
+// The machine measures its own scan head (issue "camera field calibration, closed loop"): on a
+// head built differently from its design (focal length +0.47 %, mirror spacing +0.9 mm, lens
+// distortion, a tilted mirror axis, mirror zero errors, a pointer misaligned against the
+// marking beam with lateral colour) and a camera mounted elsewhere than drawn, an operator runs
+// calibrate, then field_calibration, then the step-gauge accuracy job. The field calibration
+// must remove the field error it measures, its correction must put the marking beam where it
+// is asked in the simulator's truth, and the step gauge must then measure its length.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <random>
+#include <sstream>
+#include <string>
+
+#include "insitu/calib/calibration.h"
+#include "insitu/hw/machine.h"
+#include "insitu/hw/sim_backend.h"
+#include "insitu/optics/scan_head.h"
+#include "insitu/sim/world.h"
+#include "integration/job_support.h"
+
+namespace insitu {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::shared_ptr<sim::SimWorld> g_world;  // the last world the "sim" backend brought up
+
+void KeepTheWorld() {
+  hw::RegisterBackend("sim", [](const hw::MachineConfig& config) -> Result<hw::Machine> {
+    INSITU_RETURN_IF_ERROR(config.world.Validate());
+    g_world = std::make_shared<sim::SimWorld>(config.world);
+    return hw::MakeSimMachine(g_world);
+  });
+}
+
+const std::vector<std::string> kAsBuilt = {
+    "world.scan_head.optics.focal_length_mm=256.2",
+    "world.scan_head.optics.mirror_separation_mm=16.9",
+    "world.scan_head.optics.ftheta_c3=0.04",
+    "world.scan_head.optics.x_axis_tilt_mrad=1.0",
+    "world.scan_head.x_zero_offset_mrad=0.3",
+    "world.scan_head.y_zero_offset_mrad=-0.2",
+    "world.scan_head.pointer.offset_x_mrad=0.1",
+    "world.scan_head.pointer.offset_y_mrad=-0.05",
+    "world.scan_head.pointer.lateral_colour_pct=-0.3",
+    "world.camera.position_mm=[-176, 4, 303]",
+};
+
+std::vector<std::string> With(std::vector<std::string> a, const std::vector<std::string>& b) {
+  a.insert(a.end(), b.begin(), b.end());
+  return a;
+}
+
+std::string Slurp(const std::string& path) {
+  std::ifstream f(path);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+TEST(FieldCalibrationJob, AsBuiltHeadIsMeasuredCorrectedAndUsed) {
+  KeepTheWorld();
+  const fs::path dir = fs::temp_directory_path() / "insitu_field_calibration_test";
+  fs::remove_all(dir);
+  const std::string cal = (dir / "machine.yaml").string();
+  const std::string measured = (dir / "measured.yaml").string();
+  {
+    auto calibrated = testing::QuickCalibrate(cal, (dir / "calibrate").string(), kAsBuilt);
+    ASSERT_TRUE(calibrated.ok()) << calibrated.status().ToString();
+  }
+  const std::vector<std::string> gauge = {"scan.line_spacing_mm=1.0"};
+  auto before = testing::RunShippedJob(
+      "accuracy_step_gauge.yaml", With(With(kAsBuilt, gauge), {"machine.calibration=" + cal}),
+      (dir / "accuracy_before").string());
+  ASSERT_TRUE(before.ok()) << before.status().ToString();
+  // The head's 0.47 % scale, absorbed silently by the camera's pose: the gauge comes out short
+  // by several times the 0.05 mm bar.
+  EXPECT_LT(before->metrics["length_error_mm"], -0.15);
+
+  auto field = testing::RunShippedJob(
+      "field_calibration.yaml",
+      With(kAsBuilt, {"machine.calibration=" + cal, "output.calibration=" + measured}),
+      (dir / "field").string());
+  ASSERT_TRUE(field.ok()) << field.status().ToString();
+  auto& m = field->metrics;
+  std::printf("field: %.1f um rms before, %.2f um after (%.2f %% removed); physics %.2f, "
+              "bilinear 11 %.2f, quadrant %.1f um\n",
+              m["field_error_rms_um_before"], m["field_error_rms_um_after"],
+              m["distortion_removed_pct"], m["model_physics_rms_um"], m["model_bilinear_11_rms_um"],
+              m["model_quadrant_rms_um"]);
+  EXPECT_EQ(m["targets_found"], m["targets_expected"]);
+  EXPECT_EQ(m["check_points"], 100.0);
+  EXPECT_GT(m["field_error_rms_um_before"], 100.0);  // 0.47 % over a +-60 mm field
+  // The bars of the issue: >= 99 % removed, <= 10 um rms after, measured at check points the
+  // fit never saw. The side camera's centres scatter by ~1.3 um per target (the circle fitted
+  // to ~150 edge points of a 30 px disc, 94 um pixels): the after error sits near 2 um.
+  EXPECT_GE(m["distortion_removed_pct"], 99.0);
+  EXPECT_LE(m["field_error_rms_um_after"], 10.0);
+  // Physics first: the head model leaves less than the densest table at the check points.
+  EXPECT_LT(m["model_physics_rms_um"], m["model_bilinear_11_rms_um"]);
+  EXPECT_LT(m["model_physics_table_rms_um"], m["model_quadrant_rms_um"]);
+  for (const char* a : {"field.csv", "field_before.png", "field_after.png", "correction.csv",
+                        "field.cor", "calibration.yaml"}) {
+    EXPECT_TRUE(fs::exists(dir / "field" / a)) << a;
+  }
+
+  // The simulator's truth: where the corrected commands really put the marking beam. The
+  // galvo frame the machine now works in is the measured head's: it may sit a rigid motion
+  // away from the world's (the mirrors' zero errors move the whole field; the board lay
+  // anywhere), so positions are compared after the best rigid fit. 10 um rms: the issue's bar.
+  auto set = calib::LoadCalibration(measured);
+  ASSERT_TRUE(set.ok()) << set.status().ToString();
+  EXPECT_TRUE(set->head.measured);
+  ASSERT_TRUE(g_world);
+  const sim::ScanHeadOptions& sh = g_world->options().scan_head;
+  optics::HeadModel truth;
+  truth.design = sh.design;
+  truth.built = sh.optics;
+  truth.x_zero_offset_mrad = sh.x_zero_offset_mrad;
+  truth.y_zero_offset_mrad = sh.y_zero_offset_mrad;
+  std::vector<Eigen::Vector2d> asked, landed;
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-60.0, 60.0);
+  for (int i = 0; i < 200; ++i) {
+    const Eigen::Vector3d p(u(rng), u(rng), 0.0);
+    Eigen::Vector3d cmd, spot;
+    ASSERT_TRUE(set->head.MarkCommandFor(p, &cmd));
+    ASSERT_TRUE(truth.Spot(cmd, sh.marking.Path(), &spot));
+    asked.push_back(p.head<2>());
+    landed.push_back(spot.head<2>());
+  }
+  Eigen::MatrixXd a(2, asked.size()), l(2, landed.size());
+  for (size_t i = 0; i < asked.size(); ++i) {
+    a.col(i) = asked[i];
+    l.col(i) = landed[i];
+  }
+  const Eigen::MatrixXd rigid = Eigen::umeyama(a, l, false);
+  double ss = 0;
+  for (size_t i = 0; i < asked.size(); ++i) {
+    const Eigen::Vector2d mapped =
+        rigid.topLeftCorner(2, 2) * asked[i] + rigid.topRightCorner(2, 1);
+    ss += (mapped - landed[i]).squaredNorm();
+  }
+  const double truth_rms_um = std::sqrt(ss / asked.size()) * 1e3;
+  std::printf("truth: corrected marks within %.2f um rms of where asked (after a rigid fit of "
+              "%.3f mm, %.3f mrad)\n",
+              truth_rms_um, rigid.topRightCorner(2, 1).norm(),
+              1e3 * std::atan2(rigid(1, 0), rigid(0, 0)));
+  EXPECT_LE(truth_rms_um, 10.0);
+  // The pointer's path, measured against the marking beam: lateral colour to 0.02 % (the
+  // fit's standard error from 121 spots at ~19 um is ~0.003 %; the camera's own scale error
+  // adds ~0.005 %).
+  EXPECT_NEAR(set->head.pointer.lateral_colour_pct, -0.3, 0.02);
+
+  // The rest of the machine uses what was measured: the gauge's length and heights hold.
+  auto after = testing::RunShippedJob(
+      "accuracy_step_gauge.yaml",
+      With(With(kAsBuilt, gauge), {"machine.calibration=" + measured}),
+      (dir / "accuracy_after").string());
+  ASSERT_TRUE(after.ok()) << after.status().ToString();
+  std::printf("step gauge: length error %.3f mm before, %.3f mm after; binned height %.3f mm\n",
+              before->metrics["length_error_mm"], after->metrics["length_error_mm"],
+              after->metrics["height_error_max_abs_binned_mm"]);
+  EXPECT_LE(std::abs(after->metrics["length_error_mm"]), 0.05);
+  EXPECT_LE(after->metrics["height_error_max_abs_binned_mm"], 0.05);
+  EXPECT_LE(after->metrics["height_error_max_abs_binned_mm_method1"], 0.05);
+}
+
+// Bad input gets a clear error and the previous calibration stays as it was.
+TEST(FieldCalibrationJob, FailuresKeepThePreviousCalibration) {
+  KeepTheWorld();
+  const fs::path dir = fs::temp_directory_path() / "insitu_field_calibration_bad";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  // The as-designed file stands in for a previous calibration: the failures here come before
+  // any measurement depends on the camera's intrinsics.
+  const std::string cal = (dir / "machine.yaml").string();
+  fs::copy_file(std::string(INSITU_SOURCE_DIR) + "/calib/as_designed.yaml", cal);
+  const std::string original = Slurp(cal);
+  const auto run = [&](const std::vector<std::string>& sets, const std::string& out) {
+    return testing::RunShippedJob(
+        "field_calibration.yaml",
+        With({"machine.calibration=" + cal, "output.calibration=" + cal}, sets),
+        (dir / out).string());
+  };
+
+  auto beyond = run({"grid.half_size_mm=69.5"}, "beyond");
+  ASSERT_FALSE(beyond.ok());
+  EXPECT_NE(beyond.status().message().find("beyond the head's field"), std::string::npos)
+      << beyond.status().message();
+
+  auto no_board = run({"world.board.present=false"}, "no_board");
+  ASSERT_FALSE(no_board.ok());
+  EXPECT_NE(no_board.status().message().find("no plate plane"), std::string::npos)
+      << no_board.status().message();
+
+  // A laser too weak to ablate the plate: nothing to find, and the job names the targets.
+  auto weak = run({"marking.power=0.002", "grid.n=5", "pointer.enabled=false"}, "weak");
+  ASSERT_FALSE(weak.ok());
+  EXPECT_NE(weak.status().message().find("targets not found: 25 of the 25"), std::string::npos)
+      << weak.status().message();
+  EXPECT_NE(weak.status().message().find("(-60.00, -60.00)"), std::string::npos);
+
+  EXPECT_EQ(Slurp(cal), original);
+}
+
+}  // namespace
+}  // namespace insitu
