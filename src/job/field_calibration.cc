@@ -55,6 +55,9 @@ struct FieldSpec {
   int n = 11;                    // grid nodes per side
   double half_size_mm = 60.0;    // grid from -half to +half in x and y
   bool check_points = true;      // the cell centres, measured but never fitted
+  // spiral: discs marked by the marking laser (seed 003); pointer: the non-destructive variant,
+  // the pointer's spot parked on a matte card (measures the pointer's field, not the laser's).
+  std::string target_kind = "spiral";
   pattern::SpiralTargetOptions spiral;
   double mark_speed_mm_per_s = 1000.0;
   double jump_speed_mm_per_s = 5000.0;
@@ -89,8 +92,7 @@ Status ReadSpec(const LoadedJob& job, FieldSpec* s, hw::MachineConfig* machine) 
   if (g.ok() && (s->n < 5 || s->n > 65)) g.Fail("n", "must be in 5..65");
   if (g.ok() && !(s->half_size_mm > 0)) g.Fail("half_size_mm", "must be > 0");
   ConfigReader& t = r.Section("target");
-  std::string kind = "spiral";
-  t.ReadEnum("kind", &kind, {"spiral"});
+  t.ReadEnum("kind", &s->target_kind, {"spiral", "pointer"});
   t.Read("diameter_mm", &s->spiral.diameter_mm);
   t.Read("pitch_mm", &s->spiral.pitch_mm);
   t.Read("exposure_ms", &s->target_exposure_ms);
@@ -366,42 +368,53 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
   report.metrics["plate_board_rms_px"] = plate.rms_px;
   log->info("plate: board found, corner reprojection {:.3f} px rms", plate.rms_px);
 
-  // 2. The pointer on every grid node, on the fresh plate.
-  const Status fresh = machine.person->FreshPlate();
-  if (!fresh.ok()) return finish(false, "plate: " + fresh.ToString());
+  // 2. The pointer on every grid node.
   std::vector<Target> targets = Layout(spec);
+  // Parks the pointer on each command (uncorrected commands through `command_for`) and finds
+  // its spot on the plate: the spot's centroid against a dark frame (pointer off).
   struct PointerSpot {
     Vector3d cmd;
     Vector2d plate;
   };
-  std::vector<PointerSpot> pointer_spots;
-  if (spec.pointer) {
-    const Status ex = machine.camera->SetExposure(spec.pointer_exposure_ms * 1e3);
-    if (!ex.ok()) return finish(false, "pointer: " + ex.ToString());
+  const auto measure_spots = [&](const std::string& phase, const std::vector<Vector3d>& commands,
+                                 std::vector<std::optional<Vector2d>>* on_plate) -> Status {
+    INSITU_RETURN_IF_ERROR(machine.camera->SetExposure(spec.pointer_exposure_ms * 1e3));
+    (void)machine.scanner->StopPointer();
     auto dark = machine.camera->Grab();
-    if (!dark.ok()) return finish(false, "pointer: " + dark.status().ToString());
-    PhaseProgress progress(options, "pointer", "spots", spec.n * spec.n);
-    int k = 0;
-    for (const Target& t : targets) {
-      if (t.check) continue;
-      if (cancelled()) return finish(false, "cancelled");
-      const Vector3d p(t.nominal.x(), t.nominal.y(), 0.0);
-      const Status on = machine.scanner->StartPointerLine(p, p, 1.0);
-      if (!on.ok()) return finish(false, "pointer: " + on.ToString());
+    if (!dark.ok()) return dark.status();
+    PhaseProgress progress(options, phase, "spots", static_cast<double>(commands.size()));
+    on_plate->assign(commands.size(), std::nullopt);
+    for (size_t k = 0; k < commands.size(); ++k) {
+      if (cancelled()) return Status(StatusCode::kCancelled, "cancelled");
+      const Vector3d& p = commands[k];
+      INSITU_RETURN_IF_ERROR(machine.scanner->StartPointerLine(p, p, 1.0));
       machine.clock->SleepFor(0.005);
       auto lit = machine.camera->Grab();
-      if (!lit.ok()) return finish(false, "pointer: " + lit.status().ToString());
+      if (!lit.ok()) return lit.status();
       auto spot = vision::FindSpot(View(*lit), View(*dark), {});
-      progress.Update(++k);
+      progress.Update(static_cast<double>(k + 1));
       if (!spot.ok()) {
-        report.warnings.push_back("pointer spot at (" + Num(p.x(), 2) + ", " + Num(p.y(), 2) +
+        report.warnings.push_back(phase + " at (" + Num(p.x(), 2) + ", " + Num(p.y(), 2) +
                                   ") mm: " + spot.status().message());
         continue;
       }
-      const auto on_plate = calib::PixelsOnPlane({spot->center}, cam, plate.camera_from_plate);
-      if (on_plate[0]) pointer_spots.push_back({p, *on_plate[0]});
+      (*on_plate)[k] = calib::PixelsOnPlane({spot->center}, cam, plate.camera_from_plate)[0];
     }
-    (void)machine.scanner->StopPointer();
+    return machine.scanner->StopPointer();
+  };
+  const bool by_pointer = spec.target_kind == "pointer";
+  std::vector<PointerSpot> pointer_spots;
+  if (spec.pointer && !by_pointer) {
+    std::vector<Vector3d> nodes;
+    for (const Target& t : targets) {
+      if (!t.check) nodes.emplace_back(t.nominal.x(), t.nominal.y(), 0.0);
+    }
+    std::vector<std::optional<Vector2d>> on_plate;
+    const Status st = measure_spots("pointer spot", nodes, &on_plate);
+    if (!st.ok()) return finish(false, "pointer: " + st.ToString());
+    for (size_t k = 0; k < nodes.size(); ++k) {
+      if (on_plate[k]) pointer_spots.push_back({nodes[k], *on_plate[k]});
+    }
   }
 
   // 3-4. Mark the targets as the head is, and measure them.
@@ -416,6 +429,31 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
   }
   const auto mark_and_measure = [&](const std::string& pass, const CommandMap& command_for,
                                     int* found) -> Status {
+    if (by_pointer) {
+      // The non-destructive variant: the pointer's spot stands for the target.
+      std::vector<Vector3d> commands;
+      for (Target& t : targets) {
+        const Vector3d c(t.nominal.x(), t.nominal.y(), 0.0);
+        if (!command_for(c, &t.command)) {
+          return OutOfRange("the correction cannot reach (" + Num(c.x()) + ", " + Num(c.y()) + ") mm");
+        }
+        commands.push_back(t.command);
+      }
+      std::vector<std::optional<Vector2d>> on_plate;
+      INSITU_RETURN_IF_ERROR(measure_spots(pass, commands, &on_plate));
+      *found = 0;
+      for (size_t k = 0; k < targets.size(); ++k) {
+        targets[k].plate = on_plate[k];
+        targets[k].plate_mec.reset();
+        if (!on_plate[k]) {
+          report.warnings.push_back(std::string(targets[k].check ? "check point" : "target") +
+                                    " (" + Num(targets[k].nominal.x(), 2) + ", " +
+                                    Num(targets[k].nominal.y(), 2) + ") mm not found");
+        }
+        *found += on_plate[k] ? 1 : 0;
+      }
+      return Status::Ok();
+    }
     auto list = TargetList(spec, spiral, &targets, command_for);
     if (!list.ok()) return list.status();
     hw::ListControl control;
@@ -432,6 +470,10 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
     return MeasureTargets(*frame, cam, plate.camera_from_plate, previous->galvo.camera_from_galvo,
                           pitch, find, &targets, &report.warnings, found);
   };
+  if (!by_pointer) {
+    const Status fresh = machine.person->FreshPlate();
+    if (!fresh.ok()) return finish(false, "plate: " + fresh.ToString());
+  }
   int found_before = 0;
   const Status first = mark_and_measure("targets", [](const Vector3d& p, Vector3d* c) {
     *c = p;
@@ -505,7 +547,19 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
     if (!both.ok()) return finish(false, "fit: " + both.status().ToString());
     combined = std::move(*both);
     model_metric("physics_table", *combined);
+    // The table is kept only where it helps: at the check points it must predict better than
+    // the physics alone (a table of pure measurement noise, as pointer spots give, would only
+    // add that noise to every correction). Choosing between the two uses the check points,
+    // fitting never does.
+    if (!check_g.empty() && fit::PredictionError(*combined, check_g).rms_mm >=
+                                fit::PredictionError(*physics, check_g).rms_mm) {
+      report.warnings.push_back(
+          "the residual table does not predict the check points better than the physical head "
+          "alone: the correction uses the physics only");
+      combined.reset();
+    }
   }
+  report.metrics["residual_table_used"] = combined ? 1.0 : 0.0;
   const fit::FieldModel& chosen = combined ? static_cast<const fit::FieldModel&>(*combined)
                                            : static_cast<const fit::FieldModel&>(*physics);
   log->info("field: {:.1f} um rms before at {} check points; physics leaves {:.1f} um", before.rms_um,
@@ -513,6 +567,13 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
 
   // The measured head as the calibration holds it.
   calib::HeadCalibration head = previous->head;
+  if (by_pointer) {
+    report.warnings.push_back(
+        "non-destructive field calibration: the head was measured with the pointer's spots; "
+        "marks carry the pointer's misalignment and lateral colour against the marking laser, "
+        "which this variant cannot see (mark the spiral targets to measure the laser itself)");
+    head.pointer = optics::BeamPath{};  // the fitted head is the pointer's own
+  }
   head.measured = true;
   head.measured_by = "field_calibration job " + job.path;
   head.model = physics->head();
@@ -593,8 +654,10 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
   // 6. The second pass through the correction, measured in the same frame.
   if (spec.verify) {
     if (cancelled()) return finish(false, "cancelled");
-    const Status again = machine.person->FreshPlate();
-    if (!again.ok()) return finish(false, "second pass: " + again.ToString());
+    if (!by_pointer) {
+      const Status again = machine.person->FreshPlate();
+      if (!again.ok()) return finish(false, "second pass: " + again.ToString());
+    }
     int found_after = 0;
     const Status second = mark_and_measure("corrected targets", corrected, &found_after);
     if (!second.ok()) return finish(false, "second pass: " + second.ToString());
