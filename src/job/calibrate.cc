@@ -17,6 +17,7 @@
 #include "insitu/vision/stripe.h"
 #include "insitu/vision/targets.h"
 #include "job/progress.h"
+#include "job/save_calibration.h"
 
 namespace insitu::job {
 namespace {
@@ -348,20 +349,8 @@ Result<Report> RunCalibrateJob(const LoadedJob& job, const RunOptions& options) 
   set.created = report.started;
   set.camera = intr.intrinsics;
   set.galvo.camera_from_galvo = align.camera_from_galvo;
-  // A copy beside the report first: if the configured file cannot be written, what was
-  // measured is still there (and the previous calibration stays in effect).
-  const std::string copy = (dir / "calibration.yaml").string();
-  const Status copied = calib::SaveCalibration(set, copy);
-  if (copied.ok()) report.artifacts["calibration_copy"] = "calibration.yaml";
-  const Status saved = calib::SaveCalibration(set, spec.output_path);
-  if (!saved.ok()) {
-    return finish(false, saved.ToString() +
-                             (copied.ok() ? "; the measured calibration is in " + copy : ""));
-  }
-  std::error_code rel_ec;
-  const std::filesystem::path rel =
-      std::filesystem::relative(spec.output_path, options.out_dir, rel_ec);
-  report.artifacts["calibration"] = rel_ec ? spec.output_path : rel.string();
+  const Status saved = SaveMeasuredCalibration(set, spec.output_path, options.out_dir, &report);
+  if (!saved.ok()) return finish(false, saved.ToString());
   return finish(true, "");
 }
 

@@ -43,6 +43,7 @@
 #include "insitu/vision/circle_targets.h"
 #include "insitu/vision/targets.h"
 #include "job/progress.h"
+#include "job/save_calibration.h"
 
 namespace insitu::job {
 namespace {
@@ -695,17 +696,8 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
   plate_from_galvo.linear().topLeftCorner<2, 2>() = pg.linear();
   plate_from_galvo.translation().head<2>() = pg.translation();
   set.galvo.camera_from_galvo = plate.camera_from_plate * plate_from_galvo;
-  const std::string copy = (dir / "calibration.yaml").string();
-  const Status copied = calib::SaveCalibration(set, copy);
-  if (copied.ok()) report.artifacts["calibration_copy"] = "calibration.yaml";
-  const Status saved = calib::SaveCalibration(set, spec.output_path);
-  if (!saved.ok()) {
-    return finish(false, saved.ToString() +
-                             (copied.ok() ? "; the measured calibration is in " + copy : ""));
-  }
-  std::error_code ec;
-  const std::filesystem::path rel = std::filesystem::relative(spec.output_path, options.out_dir, ec);
-  report.artifacts["calibration"] = ec ? spec.output_path : rel.string();
+  const Status saved = SaveMeasuredCalibration(set, spec.output_path, options.out_dir, &report);
+  if (!saved.ok()) return finish(false, saved.ToString());
   return finish(true, "");
 }
 

@@ -28,15 +28,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::shared_ptr<sim::SimWorld> g_world;  // the last world the "sim" backend brought up
-
-void KeepTheWorld() {
-  hw::RegisterBackend("sim", [](const hw::MachineConfig& config) -> Result<hw::Machine> {
-    INSITU_RETURN_IF_ERROR(config.world.Validate());
-    g_world = std::make_shared<sim::SimWorld>(config.world);
-    return hw::MakeSimMachine(g_world);
-  });
-}
+using testing::KeepTheWorld;
 
 const std::vector<std::string> kAsBuilt = {
     "world.scan_head.optics.focal_length_mm=256.2",
@@ -116,8 +108,8 @@ TEST(FieldCalibrationJob, AsBuiltHeadIsMeasuredCorrectedAndUsed) {
   auto set = calib::LoadCalibration(measured);
   ASSERT_TRUE(set.ok()) << set.status().ToString();
   EXPECT_TRUE(set->head.measured);
-  ASSERT_TRUE(g_world);
-  const sim::ScanHeadOptions& sh = g_world->options().scan_head;
+  ASSERT_TRUE(testing::LastSimWorld());
+  const sim::ScanHeadOptions& sh = testing::LastSimWorld()->options().scan_head;
   optics::HeadModel truth;
   truth.design = sh.design;
   truth.built = sh.optics;

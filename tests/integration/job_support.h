@@ -2,13 +2,31 @@
 // `insitu run JOB --set ...`.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "insitu/hw/machine.h"
+#include "insitu/hw/sim_backend.h"
 #include "insitu/job/job_file.h"
 #include "insitu/job/runner.h"
+#include "insitu/sim/world.h"
 
 namespace insitu::testing {
+
+// Re-registers the "sim" backend so the test can reach the world the last job brought up: the
+// simulator's truth, to measure a job's results against.
+inline std::shared_ptr<sim::SimWorld>& LastSimWorld() {
+  static std::shared_ptr<sim::SimWorld> world;
+  return world;
+}
+inline void KeepTheWorld() {
+  hw::RegisterBackend("sim", [](const hw::MachineConfig& config) -> Result<hw::Machine> {
+    INSITU_RETURN_IF_ERROR(config.world.Validate());
+    LastSimWorld() = std::make_shared<sim::SimWorld>(config.world);
+    return hw::MakeSimMachine(LastSimWorld());
+  });
+}
 
 inline std::string JobFile(const std::string& name) {
   return std::string(INSITU_SOURCE_DIR) + "/config/jobs/" + name;

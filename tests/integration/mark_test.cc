@@ -28,15 +28,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::shared_ptr<sim::SimWorld> g_world;  // the last world the "sim" backend brought up
-
-void KeepTheWorld() {
-  hw::RegisterBackend("sim", [](const hw::MachineConfig& config) -> Result<hw::Machine> {
-    INSITU_RETURN_IF_ERROR(config.world.Validate());
-    g_world = std::make_shared<sim::SimWorld>(config.world);
-    return hw::MakeSimMachine(g_world);
-  });
-}
+using testing::KeepTheWorld;
 
 using insitu::testing::DecodeQr;
 
@@ -81,8 +73,8 @@ TEST(MarkJob, InSituDemoMarksInFocusAndVerifies) {
               m["line_spacing_120_um"], m["placement_error_mm"], m["focus_error_max_mm"]);
 
   // What the simulated laser really did (truth the job never sees).
-  ASSERT_NE(g_world, nullptr);
-  const auto& pulses = g_world->mark_pulses();
+  ASSERT_NE(testing::LastSimWorld(), nullptr);
+  const auto& pulses = testing::LastSimWorld()->mark_pulses();
   ASSERT_GT(pulses.size(), 10000u);
   auto code = pattern::QrCodeMask("insitu demo 0001", 'M');
   ASSERT_TRUE(code.ok());
