@@ -17,15 +17,35 @@ namespace {
 Result<LoadedJob> Expand(LoadedJob job, const std::vector<std::string>& sets) {
   const std::string& path = job.path;
   if (!job.root.IsMap()) return ParseError(path + ": a job file is a YAML map with a 'job:' key");
+  // `--set world=FILE` names another world file: it must replace the job's before the world is
+  // read (the other --set keys apply after it, on top of whichever world file is used).
+  for (const std::string& s : sets) {
+    if (s.rfind("world=", 0) == 0) INSITU_RETURN_IF_ERROR(job.root.Set("world", s.substr(6)));
+  }
   const ConfigNode world = job.root.Child("world");
   if (world.IsDefined()) {
     if (!world.IsScalar()) {
       return InvalidArgument(world.Where() + ": expected the name of a world file");
     }
     INSITU_ASSIGN_OR_RETURN(std::string file, world.AsString());
-    auto loaded = ConfigNode::LoadFile(ResolvePath(job.folder, file));
+    const std::string world_path = ResolvePath(job.folder, file);
+    auto loaded = ConfigNode::LoadFile(world_path);
     if (!loaded.ok()) return loaded.status().Prefixed(world.Where());
     job.world = *loaded;
+    // A world file may name a `base:` world (relative to its own folder) and give only what
+    // differs from it.
+    const ConfigNode base = job.world.Child("base");
+    if (base.IsDefined()) {
+      INSITU_ASSIGN_OR_RETURN(std::string base_file, base.AsString());
+      auto base_world = ConfigNode::LoadFile(
+          ResolvePath(fs::path(world_path).parent_path().string(), base_file));
+      if (!base_world.ok()) return base_world.status().Prefixed(base.Where());
+      if (base_world->Child("base").IsDefined()) {
+        return InvalidArgument(base.Where() + ": a base world cannot name a base of its own");
+      }
+      INSITU_RETURN_IF_ERROR(base_world->Merge(job.world));
+      job.world = *base_world;
+    }
   }
   // What differs from the world file for this job (simulator only): typically the part the
   // operator put on the stage and where.
@@ -44,6 +64,7 @@ Result<LoadedJob> Expand(LoadedJob job, const std::vector<std::string>& sets) {
       return InvalidArgument("--set '" + s + "': expected dotted.key=value");
     }
     const std::string key = s.substr(0, eq), value = s.substr(eq + 1);
+    if (key == "world") continue;  // applied above
     if (key.rfind("world.", 0) == 0) {
       if (!job.world.IsDefined()) {
         return InvalidArgument("--set " + key + ": the job names no world file");
@@ -109,6 +130,7 @@ void ReadBeam(ConfigReader& r, sim::BeamOptions* b) {
 }  // namespace
 
 void ReadWorld(ConfigReader& r, sim::WorldOptions* w) {
+  r.Skip("base");  // merged when the job was loaded
   r.Read("name", &w->name);
   r.Read("real_time_factor", &w->real_time_factor);
   int seed = static_cast<int>(w->seed);

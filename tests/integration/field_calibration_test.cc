@@ -30,18 +30,10 @@ namespace fs = std::filesystem;
 
 using testing::KeepTheWorld;
 
-const std::vector<std::string> kAsBuilt = {
-    "world.scan_head.optics.focal_length_mm=256.2",
-    "world.scan_head.optics.mirror_separation_mm=16.9",
-    "world.scan_head.optics.ftheta_c3=0.04",
-    "world.scan_head.optics.x_axis_tilt_mrad=1.0",
-    "world.scan_head.x_zero_offset_mrad=0.3",
-    "world.scan_head.y_zero_offset_mrad=-0.2",
-    "world.scan_head.pointer.offset_x_mrad=0.1",
-    "world.scan_head.pointer.offset_y_mrad=-0.05",
-    "world.scan_head.pointer.lateral_colour_pct=-0.3",
-    "world.camera.position_mm=[-176, 4, 303]",
-};
+// config/worlds/as_built.yaml: f 256.2 mm for 255, mirrors 16.9 mm apart for 16, c3 0.04, the
+// X axis tilted 1 mrad, zero errors 0.3 / -0.2 mrad, the pointer 0.1 / -0.05 mrad off with
+// -0.3 % lateral colour, the camera 6 mm from its drawing.
+const std::vector<std::string> kAsBuilt = {"world=../worlds/as_built.yaml"};
 
 std::vector<std::string> With(std::vector<std::string> a, const std::vector<std::string>& b) {
   a.insert(a.end(), b.begin(), b.end());
