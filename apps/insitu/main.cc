@@ -1,20 +1,25 @@
 // insitu: the operator's command line. Runs job files against the machine they name.
 //   insitu run JOB.yaml [--out DIR] [--set dotted.key=value ...]
 //   insitu diagnose DATA.csv [--out DIR]
-//   insitu cor import FILE.cor --out TABLE.csv     an EzCad correction as insitu's field table
-//   insitu cor export TABLE.csv --lens MM [--format jcz|lmc1] --out FILE.cor
+//   insitu cor import FILE.cor --out TABLE.csv [--reading R]   an EzCad correction as insitu's
+//                                                 field table, read as the head model explains
+//   insitu cor export TABLE.csv --lens MM [--format jcz|lmc1] [--reading R] --out FILE.cor
 // Exit codes: 0 success, 2 bad input (job file, --set, calibration file), 1 failure while
 // running (the report says what), 130 interrupted.
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <atomic>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
 #include "insitu/core/file.h"
 #include "insitu/core/log.h"
+#include "insitu/fit/cor_physics.h"
 #include "insitu/hw/lmc_cor.h"
 #include "insitu/job/diagnose_job.h"
 #include "insitu/job/job_file.h"
@@ -90,40 +95,124 @@ int Diagnose(const std::string& csv, const std::string& out_dir) {
 }
 
 // An LMC board's .cor file as insitu's field correction table (head.correction), and back.
-int CorImport(const std::string& cor_path, const std::string& out) {
-  auto cor = insitu::hw::lmc::ReadCor(cor_path);
+// Import reads the file the way the two-mirror head model explains best (fit/cor_physics.h),
+// unless `reading_code` forces one; export writes the table as --reading says, else as the
+// CSV's "# reading:" comment (written by import) says, else in the default reading.
+int CorImport(const std::string& cor_path, const std::string& out,
+              const std::string& reading_code) {
+  namespace lmc = insitu::hw::lmc;
+  auto cor = lmc::ReadCor(cor_path);
   if (!cor.ok()) {
     std::fprintf(stderr, "insitu: %s\n", cor.status().message().c_str());
     return ExitCodeFor(cor.status());
   }
+  const std::vector<lmc::CorReading> readings = lmc::AllCorReadings();
+  int forced = -1;
+  if (!reading_code.empty()) {
+    auto r = lmc::ParseCorReading(reading_code);
+    if (!r.ok()) {
+      std::fprintf(stderr, "insitu: --reading: %s\n", r.status().message().c_str());
+      return 2;
+    }
+    forced = static_cast<int>(std::find(readings.begin(), readings.end(), *r) - readings.begin());
+  }
+  std::vector<insitu::fit::CorReadingCandidate> candidates;
+  for (const lmc::CorReading& r : readings) {
+    insitu::fit::CorReadingCandidate c;
+    c.name = r.Name();
+    for (int i = 0; i < 65; ++i) {
+      for (int j = 0; j < 65; ++j) {
+        c.node_mm.push_back(cor->NodeMm(i, j));
+        c.offset_mm.push_back(cor->OffsetMm(i, j, r));
+      }
+    }
+    candidates.push_back(std::move(c));
+  }
+  insitu::fit::CorPhysicsOptions options;
+  options.lens_mm = cor->lens_mm();
+  auto choice = insitu::fit::ChooseCorReading(candidates, 0, options);
+  if (!choice.ok()) {
+    std::fprintf(stderr, "insitu: %s: %s\n", cor_path.c_str(), choice.status().message().c_str());
+    return ExitCodeFor(choice.status());
+  }
+  const int used = forced >= 0 ? forced : choice->chosen;
+  const auto pct = [&](int k) { return 100.0 * choice->fits[k].explained; };
+  // The best reading other than the one used.
+  int next = -1;
+  for (int k = 0; k < static_cast<int>(readings.size()); ++k) {
+    if (k != used && (next < 0 || choice->fits[k].explained > choice->fits[next].explained)) {
+      next = k;
+    }
+  }
+  char what[512];
+  std::snprintf(what, sizeof what,
+                "read as %s%s: the two-mirror head model explains %.1f %% (%s: %s %.1f %%)",
+                readings[used].Name().c_str(), forced >= 0 ? " (--reading)" : "", pct(used),
+                used == choice->best ? "next best" : "best", readings[next].Name().c_str(),
+                pct(next));
   const insitu::Status saved =
-      insitu::WriteFileAtomically(out, insitu::hw::lmc::ToCorrectionCsv(*cor));
+      insitu::WriteFileAtomically(out, "# insitu cor import " + cor_path + ": " + what + "\n" +
+                                           lmc::ToCorrectionCsv(*cor, readings[used]));
   if (!saved.ok()) {
     std::fprintf(stderr, "insitu: %s\n", saved.message().c_str());
     return 1;
   }
-  std::printf("%s: 65 x 65 nodes, lens %.2f mm -> %s\n", cor_path.c_str(), cor->lens_mm(),
+  std::printf("%s: 65 x 65 nodes, lens %.2f mm; %s -> %s\n", cor_path.c_str(), cor->lens_mm(), what,
               out.c_str());
+  std::vector<int> order(readings.size());
+  for (size_t k = 0; k < order.size(); ++k) order[k] = static_cast<int>(k);
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return pct(a) > pct(b); });
+  for (int k : order) {
+    std::printf("  %6.1f %%  %s (--reading %s)\n", pct(k), readings[k].Name().c_str(),
+                readings[k].Code().c_str());
+  }
+  if (forced < 0 && !choice->warning.empty()) {
+    std::printf("warning: %s\n", choice->warning.c_str());
+  }
+  if (forced >= 0 && forced != choice->best && choice->decided_by_physics) {
+    std::printf("warning: the head model explains %s better (%.1f %%)\n",
+                readings[choice->best].Name().c_str(), pct(choice->best));
+  }
   return 0;
 }
 
 int CorExport(const std::string& table_path, double lens_mm, const std::string& format,
-              const std::string& out) {
+              const std::string& reading_code, const std::string& out) {
+  namespace lmc = insitu::hw::lmc;
   auto table = insitu::pattern::CorrectionTable::Load(table_path);
   if (!table.ok()) {
     std::fprintf(stderr, "insitu: %s\n", table.status().message().c_str());
     return ExitCodeFor(table.status());
   }
-  const auto cor = insitu::hw::lmc::FromCorrection(
+  lmc::CorReading reading;
+  if (!reading_code.empty()) {
+    auto r = lmc::ParseCorReading(reading_code);
+    if (!r.ok()) {
+      std::fprintf(stderr, "insitu: --reading: %s\n", r.status().message().c_str());
+      return 2;
+    }
+    reading = *r;
+  } else {
+    std::ifstream f(table_path);
+    const std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+    auto r = lmc::CorReadingOfCsv(text, table_path);
+    if (!r.ok()) {
+      std::fprintf(stderr, "insitu: %s\n", r.status().message().c_str());
+      return 2;
+    }
+    if (r->has_value()) reading = **r;
+  }
+  const auto cor = lmc::FromCorrection(
       [&](double x, double y) { return table->OffsetAt(x, y); }, lens_mm,
-      format == "lmc1" ? insitu::hw::lmc::CorFormat::kLmc1 : insitu::hw::lmc::CorFormat::kJcz2);
-  const insitu::Status saved = insitu::hw::lmc::WriteCor(out, cor);
+      format == "lmc1" ? lmc::CorFormat::kLmc1 : lmc::CorFormat::kJcz2, reading);
+  const insitu::Status saved = lmc::WriteCor(out, cor);
   if (!saved.ok()) {
     std::fprintf(stderr, "insitu: %s\n", saved.message().c_str());
     return ExitCodeFor(saved);
   }
-  std::printf("%s (%d x %d nodes) -> %s, %s format, lens %.2f mm\n", table_path.c_str(),
-              table->nodes_x(), table->nodes_y(), out.c_str(), format.c_str(), lens_mm);
+  std::printf("%s (%d x %d nodes) -> %s, %s format, lens %.2f mm, stored as %s\n",
+              table_path.c_str(), table->nodes_x(), table->nodes_y(), out.c_str(), format.c_str(),
+              lens_mm, reading.Name().c_str());
   return 0;
 }
 
@@ -157,9 +246,12 @@ int main(int argc, char** argv) {
   CLI::App* cor = app.add_subcommand("cor", "EzCad .cor correction files of LMC galvo boards");
   cor->require_subcommand(1);
   CLI::App* cor_import = cor->add_subcommand("import", "a .cor file as insitu's field table (CSV)");
-  std::string cor_in, cor_out;
+  std::string cor_in, cor_out, import_reading, export_reading;
   cor_import->add_option("file", cor_in, ".cor file (JCZ_COR_2_1 or LMC1COR_1.0)")->required();
   cor_import->add_option("--out", cor_out, "field correction CSV to write")->required();
+  cor_import->add_option("--reading", import_reading,
+                         "read the file as this (e.g. dy-dx,x-major,++) instead of as the head "
+                         "model explains best");
   CLI::App* cor_export = cor->add_subcommand("export", "insitu's field table (CSV) as a .cor file");
   std::string table_in, cor_file, cor_format = "jcz";
   double lens_mm = 0.0;
@@ -169,6 +261,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1.0, 2000.0));
   cor_export->add_option("--format", cor_format, "jcz (JCZ_COR_2_1) or lmc1 (LMC1COR_1.0)")
       ->check(CLI::IsMember({"jcz", "lmc1"}));
+  cor_export->add_option("--reading", export_reading,
+                         "store the table as this (e.g. dy-dx,x-major,++); default: the CSV's "
+                         "'# reading:' comment (cor import writes it), else dx-dy,x-major,++");
   cor_export->add_option("--out", cor_file, ".cor file to write")->required();
 
   try {
@@ -179,7 +274,9 @@ int main(int argc, char** argv) {
   insitu::SetLogLevel(log_level);
   if (run->parsed()) return Run(job_path, out_dir, sets);
   if (diagnose->parsed()) return Diagnose(csv_path, diag_out);
-  if (cor_import->parsed()) return CorImport(cor_in, cor_out);
-  if (cor_export->parsed()) return CorExport(table_in, lens_mm, cor_format, cor_file);
+  if (cor_import->parsed()) return CorImport(cor_in, cor_out, import_reading);
+  if (cor_export->parsed()) {
+    return CorExport(table_in, lens_mm, cor_format, export_reading, cor_file);
+  }
   return 2;
 }

@@ -1,7 +1,10 @@
+// .cor files (lmc_cor.h): the bytes as stored, readings applied only where a table meets the
+// galvo frame.
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <optional>
 #include <sstream>
 
 #include "insitu/core/file.h"
@@ -15,7 +18,9 @@ constexpr size_t kLabelBytes = 22;
 constexpr char kJczLabel[] = "JCZ_COR_2_1";
 constexpr char kLmcLabel[] = "LMC1COR_1.0";
 constexpr size_t kJczBytes = 33840;
+constexpr size_t kJczScale = 0x1C;
 constexpr size_t kJczTable = 0x24;
+constexpr size_t kJczTrailer = 4;
 constexpr size_t kLmcHeaderDoubles = 63;
 constexpr size_t kLmcScaleIndex = 43;
 constexpr size_t kLmcTable = kLabelBytes + 2 + kLmcHeaderDoubles * 8;  // 0x210
@@ -54,11 +59,85 @@ std::string LabelText(const std::string& b) {
 }
 
 constexpr double kMaxOffset = 32767.0;  // what a WriteCorLine word can carry
+constexpr char kReadingComment[] = "reading:";
+
+// The entry in file order that holds node (i, j) (i along x) for a reading.
+size_t Entry(int i, int j, const CorReading& reading) {
+  return reading.y_major ? static_cast<size_t>(j) * kNodes + i
+                         : static_cast<size_t>(i) * kNodes + j;
+}
 
 }  // namespace
 
+std::string CorReading::Name() const {
+  return std::string("pair ") + (pair_dy_dx ? "(dy, dx)" : "(dx, dy)") +
+         (y_major ? ", y-major" : ", x-major") + ", signs (" + (negate_dx ? "-" : "+") + "," +
+         (negate_dy ? "-" : "+") + ")";
+}
+
+std::string CorReading::Code() const {
+  return std::string(pair_dy_dx ? "dy-dx" : "dx-dy") + (y_major ? ",y-major," : ",x-major,") +
+         (negate_dx ? "-" : "+") + (negate_dy ? "-" : "+");
+}
+
+Result<CorReading> ParseCorReading(const std::string& code) {
+  CorReading r;
+  bool pair = false, order = false, signs = false;
+  std::istringstream in(code);
+  std::string part;
+  const auto bad = [&](const std::string& why) {
+    return InvalidArgument("reading '" + code + "': " + why +
+                           " (expected e.g. dy-dx,x-major,++: pair dx-dy or dy-dx, node order "
+                           "x-major or y-major, signs of dx and dy ++, +-, -+ or --)");
+  };
+  if (code.empty()) return bad("empty");
+  while (std::getline(in, part, ',')) {
+    const auto b = part.find_first_not_of(" \t"), e = part.find_last_not_of(" \t");
+    part = b == std::string::npos ? "" : part.substr(b, e - b + 1);
+    bool* seen = nullptr;
+    if (part == "dx-dy" || part == "dy-dx") {
+      seen = &pair;
+      r.pair_dy_dx = part == "dy-dx";
+    } else if (part == "x-major" || part == "y-major") {
+      seen = &order;
+      r.y_major = part == "y-major";
+    } else if (part.size() == 2 && (part[0] == '+' || part[0] == '-') &&
+               (part[1] == '+' || part[1] == '-')) {
+      seen = &signs;
+      r.negate_dx = part[0] == '-';
+      r.negate_dy = part[1] == '-';
+    } else {
+      return bad("'" + part + "' is not a part of a reading");
+    }
+    if (*seen) return bad("'" + part + "' gives a part a second time");
+    *seen = true;
+  }
+  return r;
+}
+
+std::vector<CorReading> AllCorReadings() {
+  std::vector<CorReading> all;
+  for (int order = 0; order < 2; ++order) {
+    for (int pair = 0; pair < 2; ++pair) {
+      for (int sx = 0; sx < 2; ++sx) {
+        for (int sy = 0; sy < 2; ++sy) all.push_back({order == 1, pair == 1, sx == 1, sy == 1});
+      }
+    }
+  }
+  return all;  // the default, all false, first
+}
+
 Eigen::Vector2d CorFile::NodeMm(int i, int j) const {
   return {(i * 1024.0 - 32768.0) / scale, (j * 1024.0 - 32768.0) / scale};
+}
+
+Eigen::Vector2d CorFile::OffsetMm(int i, int j, const CorReading& reading) const {
+  const auto& s = offsets[Entry(i, j, reading)];
+  double dx = reading.pair_dy_dx ? s[1] : s[0];
+  double dy = reading.pair_dy_dx ? s[0] : s[1];
+  if (reading.negate_dx) dx = -dx;
+  if (reading.negate_dy) dy = -dy;
+  return Eigen::Vector2d(dx, dy) / scale;
 }
 
 Result<CorFile> ReadCor(const std::string& path) {
@@ -78,7 +157,7 @@ Result<CorFile> ReadCor(const std::string& path) {
                  std::to_string(kJczBytes));
     }
     cor.format = CorFormat::kJcz2;
-    cor.scale = Get<double>(b, 0x1C);
+    cor.scale = Get<double>(b, kJczScale);
     table = kJczTable;
   } else if (label.rfind(kLmcLabel, 0) == 0) {
     const size_t need = kLmcTable + kNodes * kNodes * 16;
@@ -96,6 +175,7 @@ Result<CorFile> ReadCor(const std::string& path) {
     return bad("scale " + std::to_string(cor.scale) + " units/mm is not a lens field");
   }
   cor.offsets.resize(kNodes * kNodes);
+  const size_t pair_bytes = cor.format == CorFormat::kJcz2 ? 8 : 16;
   for (size_t n = 0; n < cor.offsets.size(); ++n) {
     if (cor.format == CorFormat::kJcz2) {
       cor.offsets[n] = {static_cast<double>(Get<int32_t>(b, table + 8 * n)),
@@ -104,12 +184,18 @@ Result<CorFile> ReadCor(const std::string& path) {
       cor.offsets[n] = {Get<double>(b, table + 16 * n), Get<double>(b, table + 16 * n + 8)};
     }
     for (double v : cor.offsets[n]) {
-      if (!std::isfinite(v) || std::abs(v) > kMaxOffset) {
-        return bad("node " + std::to_string(n) + " holds an offset of " + std::to_string(v) +
-                   " units, beyond the board's +-32767");
+      if (!std::isfinite(v)) {
+        return bad("entry " + std::to_string(n) +
+                   " of 4225 holds an offset that is not a number (" + std::to_string(v) + ")");
+      }
+      if (std::abs(v) > kMaxOffset) {
+        return bad("entry " + std::to_string(n) + " of 4225 holds an offset of " +
+                   std::to_string(v) + " units, beyond the board's +-32767");
       }
     }
   }
+  cor.header = b.substr(0, table);
+  cor.trailer = b.substr(table + cor.offsets.size() * pair_bytes);
   return cor;
 }
 
@@ -126,24 +212,32 @@ Status WriteCor(const std::string& path, const CorFile& cor) {
       }
     }
   }
+  // A header as read is written back as it was (the scale patched in, the same bytes when it
+  // was not changed); otherwise insitu's: the label, zeros, the scale.
+  const size_t table = cor.format == CorFormat::kJcz2 ? kJczTable : kLmcTable;
+  const size_t scale_at =
+      cor.format == CorFormat::kJcz2 ? kJczScale : kLabelBytes + 2 + kLmcScaleIndex * 8;
   std::string b;
-  if (cor.format == CorFormat::kJcz2) {
-    b = Label(kJczLabel);
-    b.append(6, '\0');
-    Append(&b, cor.scale);
-    for (const auto& o : cor.offsets) {
-      for (double v : o) Append(&b, static_cast<int32_t>(std::lround(v)));
-    }
-    b.append(4, '\0');
+  if (cor.header.size() == table) {
+    b = cor.header;
   } else {
-    b = Label(kLmcLabel);
-    b.append(2, '\0');
-    for (size_t k = 0; k < kLmcHeaderDoubles; ++k)
-      Append(&b, k == kLmcScaleIndex ? cor.scale : 0.0);
-    for (const auto& o : cor.offsets) {
-      Append(&b, o[0]);
-      Append(&b, o[1]);
+    b = Label(cor.format == CorFormat::kJcz2 ? kJczLabel : kLmcLabel);
+    b.resize(table, '\0');
+  }
+  std::memcpy(b.data() + scale_at, &cor.scale, sizeof cor.scale);
+  for (const auto& o : cor.offsets) {
+    for (double v : o) {
+      if (cor.format == CorFormat::kJcz2) {
+        Append(&b, static_cast<int32_t>(std::lround(v)));
+      } else {
+        Append(&b, v);
+      }
     }
+  }
+  if (cor.format == CorFormat::kJcz2) {
+    b += cor.trailer.size() == kJczTrailer ? cor.trailer : std::string(kJczTrailer, '\0');
+  } else {
+    b += cor.trailer;
   }
   return WriteFileAtomically(path, b);
 }
@@ -157,25 +251,48 @@ BoardCorrection ToBoard(const CorFile& cor) {
   return t;
 }
 
-std::string ToCorrectionCsv(const CorFile& cor) {
-  std::string out =
-      "# from a " + std::string(cor.format == CorFormat::kJcz2 ? kJczLabel : kLmcLabel) +
-      " .cor file, lens " + std::to_string(cor.lens_mm()) + " mm\nx_mm,y_mm,dx_mm,dy_mm\n";
-  char line[128];
+std::string ToCorrectionCsv(const CorFile& cor, const CorReading& reading) {
+  char line[160];
+  std::snprintf(line, sizeof line, "# from a %s .cor file, lens %.6f mm\n",
+                cor.format == CorFormat::kJcz2 ? kJczLabel : kLmcLabel, cor.lens_mm());
+  std::string out = line;
+  out += "# " + std::string(kReadingComment) + " " + reading.Code() + " (" + reading.Name() +
+         ")\nx_mm,y_mm,dx_mm,dy_mm\n";
+  // 1e-10 mm is 1e-7 units on the widest lens: the CSV read back gives the stored units again.
   for (int i = 0; i < kNodes; ++i) {
     for (int j = 0; j < kNodes; ++j) {
       const Eigen::Vector2d p = cor.NodeMm(i, j);
-      const auto& o = cor.offsets[i * kNodes + j];
-      std::snprintf(line, sizeof line, "%.6f,%.6f,%.9f,%.9f\n", p.x(), p.y(), o[0] / cor.scale,
-                    o[1] / cor.scale);
+      const Eigen::Vector2d o = cor.OffsetMm(i, j, reading);
+      std::snprintf(line, sizeof line, "%.10f,%.10f,%.10f,%.10f\n", p.x(), p.y(), o.x(), o.y());
       out += line;
     }
   }
   return out;
 }
 
+Result<std::optional<CorReading>> CorReadingOfCsv(const std::string& text,
+                                                  const std::string& origin) {
+  std::istringstream in(text);
+  std::string line;
+  int line_no = 0;
+  const std::string key = "# " + std::string(kReadingComment);
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (line.rfind(key, 0) != 0) continue;
+    std::istringstream rest(line.substr(key.size()));
+    std::string code;
+    rest >> code;
+    auto reading = ParseCorReading(code);
+    if (!reading.ok()) {
+      return reading.status().Prefixed(origin + ":" + std::to_string(line_no));
+    }
+    return std::optional<CorReading>(*reading);
+  }
+  return std::optional<CorReading>();
+}
+
 CorFile FromCorrection(const std::function<Eigen::Vector2d(double, double)>& offset_mm,
-                       double lens_mm, CorFormat format) {
+                       double lens_mm, CorFormat format, const CorReading& reading) {
   CorFile cor;
   cor.format = format;
   cor.scale = 65536.0 / lens_mm;
@@ -184,7 +301,13 @@ CorFile FromCorrection(const std::function<Eigen::Vector2d(double, double)>& off
     for (int j = 0; j < kNodes; ++j) {
       const Eigen::Vector2d p = cor.NodeMm(i, j);
       const Eigen::Vector2d d = offset_mm(p.x(), p.y()) * cor.scale;
-      cor.offsets[i * kNodes + j] = {d.x(), d.y()};
+      // Whole units, what the board takes (+ 0.0: never a negative zero). A non-finite or huge
+      // value stays as it is, for WriteCor to refuse.
+      const auto units = [](double v) { return std::abs(v) < 1e15 ? std::round(v) + 0.0 : v; };
+      const double dx = units(reading.negate_dx ? -d.x() : d.x());
+      const double dy = units(reading.negate_dy ? -d.y() : d.y());
+      cor.offsets[Entry(i, j, reading)] =
+          reading.pair_dy_dx ? std::array<double, 2>{dy, dx} : std::array<double, 2>{dx, dy};
     }
   }
   return cor;
