@@ -13,6 +13,8 @@
 
 #include <ceres/ceres.h>
 
+#include "fit/ceres_support.h"
+
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -155,14 +157,7 @@ Solved SolveFrom(double f0, const std::vector<Vector2d>& commands,
   fix(o.fit_axis_tilt, {kTilt, kTiltY});
   fix(o.fit_zero_offsets, {kA0, kB0});
   fix(o.fit_rotation, {kPhi});
-  ceres::Solver::Options so;
-  so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
-  so.linear_solver_type = ceres::DENSE_QR;
-  so.max_num_iterations = o.max_iterations;
-  so.function_tolerance = 1e-12;
-  so.parameter_tolerance = 1e-12;
-  so.gradient_tolerance = 1e-14;
-  so.logging_type = ceres::SILENT;
+  const ceres::Solver::Options so = PreciseLmOptions(o.max_iterations);
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
   if (summary.IsSolutionUsable()) {

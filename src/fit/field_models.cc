@@ -9,6 +9,8 @@
 #include <Eigen/Dense>
 #include <ceres/ceres.h>
 
+#include "fit/ceres_support.h"
+
 namespace insitu::fit {
 namespace {
 
@@ -294,14 +296,7 @@ Result<HeadFieldFit> HeadFieldFit::Fit(const std::vector<TargetSample>& samples,
                               " parameters and only " + std::to_string(2 * samples.size()) +
                               " residuals");
   }
-  ceres::Solver::Options so;
-  so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
-  so.linear_solver_type = ceres::DENSE_QR;
-  so.max_num_iterations = options.max_iterations;
-  so.function_tolerance = 1e-14;
-  so.parameter_tolerance = 1e-14;
-  so.gradient_tolerance = 1e-16;
-  so.logging_type = ceres::SILENT;
+  const ceres::Solver::Options so = PreciseLmOptions(options.max_iterations);
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
   if (summary.termination_type != ceres::CONVERGENCE) {
@@ -328,10 +323,7 @@ Result<HeadFieldFit> HeadFieldFit::Fit(const std::vector<TargetSample>& samples,
   ceres::CRSMatrix crs;
   std::vector<double> se(kParams, 0.0);
   if (problem.Evaluate(eo, &cost, &res, nullptr, &crs)) {
-    Eigen::MatrixXd j = Eigen::MatrixXd::Zero(crs.num_rows, crs.num_cols);
-    for (int r = 0; r < crs.num_rows; ++r) {
-      for (int k = crs.rows[r]; k < crs.rows[r + 1]; ++k) j(r, crs.cols[k]) = crs.values[k];
-    }
+    const Eigen::MatrixXd j = DenseJacobian(crs);
     double rss = 0;
     for (double r : res) rss += r * r;
     const int dof = static_cast<int>(res.size()) - free;
@@ -449,11 +441,7 @@ Result<BeamPathFit> FitBeamPath(const optics::HeadModel& head,
                                  new BeamCost(head.built, a, s.cmd, s.meas)),
                              nullptr, p);
   }
-  ceres::Solver::Options so;
-  so.linear_solver_type = ceres::DENSE_QR;
-  so.function_tolerance = 1e-14;
-  so.parameter_tolerance = 1e-14;
-  so.logging_type = ceres::SILENT;
+  const ceres::Solver::Options so = PreciseLmOptions(50);
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
   if (summary.termination_type != ceres::CONVERGENCE) {
@@ -465,10 +453,7 @@ Result<BeamPathFit> FitBeamPath(const optics::HeadModel& head,
   std::vector<double> res;
   ceres::CRSMatrix crs;
   if (problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, &res, nullptr, &crs)) {
-    Eigen::MatrixXd j = Eigen::MatrixXd::Zero(crs.num_rows, crs.num_cols);
-    for (int r = 0; r < crs.num_rows; ++r) {
-      for (int k = crs.rows[r]; k < crs.rows[r + 1]; ++k) j(r, crs.cols[k]) = crs.values[k];
-    }
+    const Eigen::MatrixXd j = DenseJacobian(crs);
     double rss = 0;
     for (double r : res) rss += r * r;
     fit.rms_mm = std::sqrt(rss / spots.size());
