@@ -321,7 +321,8 @@ Result<HeadFieldFit> HeadFieldFit::Fit(const std::vector<TargetSample>& samples,
   double cost = 0;
   std::vector<double> res;
   ceres::CRSMatrix crs;
-  std::vector<double> se(kParams, 0.0);
+  std::vector<double> se(kParams, std::numeric_limits<double>::quiet_NaN());
+  fit.rms_mm_ = std::numeric_limits<double>::quiet_NaN();
   if (problem.Evaluate(eo, &cost, &res, nullptr, &crs)) {
     const Eigen::MatrixXd j = DenseJacobian(crs);
     double rss = 0;
@@ -396,7 +397,7 @@ struct BeamCost {
   bool operator()(const T* const p, T* residual) const {
     optics::HeadParamsT<T> h;
     h.focal_length_mm = T(built_.focal_length_mm);
-    h.mirror_separation_mm = T(built_.mirror_separation_mm);
+    h.mirror_separation_mm = p[3];
     h.c3 = T(built_.ftheta_c3);
     h.c5 = T(built_.ftheta_c5);
     h.x_axis_tilt_rad = T(built_.x_axis_tilt_mrad * 1e-3);
@@ -424,12 +425,25 @@ struct BeamCost {
 }  // namespace
 
 Result<BeamPathFit> FitBeamPath(const optics::HeadModel& head,
-                                const std::vector<GalvoSample>& spots) {
-  if (spots.size() < 3) {
-    return FailedPrecondition("the beam path fit needs at least 3 spots, got " +
+                                const std::vector<GalvoSample>& spots, bool fit_mirror_separation) {
+  if (spots.size() < 4) {
+    return FailedPrecondition("the beam path fit needs at least 4 spots, got " +
                               std::to_string(spots.size()));
   }
-  double p[3] = {0, 0, 0};  // offset x, y (rad), focal scale - 1
+  if (fit_mirror_separation) {
+    double z_lo = 1e300, z_hi = -1e300;
+    for (const GalvoSample& s : spots) {
+      z_lo = std::min(z_lo, s.cmd.z());
+      z_hi = std::max(z_hi, s.cmd.z());
+    }
+    // The separation tilts the chief rays only: spots on one plane cannot see it.
+    if (!(z_hi - z_lo >= 2.0)) {
+      return FailedPrecondition("the mirror separation needs spots at two heights at least 2 mm "
+                                "apart; these span " + Mm(z_hi - z_lo) + " mm");
+    }
+  }
+  // offset x, y (rad), focal scale - 1, mirror separation (mm)
+  double p[4] = {0, 0, 0, head.built.mirror_separation_mm};
   ceres::Problem problem;
   for (const GalvoSample& s : spots) {
     optics::MirrorAngles a;
@@ -437,10 +451,12 @@ Result<BeamPathFit> FitBeamPath(const optics::HeadModel& head,
       return InvalidArgument("spot commanded at (" + Mm(s.cmd.x()) + ", " + Mm(s.cmd.y()) +
                              ") mm lies outside the head's design field");
     }
-    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<BeamCost, 2, 3>(
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<BeamCost, 2, 4>(
                                  new BeamCost(head.built, a, s.cmd, s.meas)),
                              nullptr, p);
   }
+  const int free = fit_mirror_separation ? 4 : 3;
+  if (!fit_mirror_separation) problem.SetManifold(p, new ceres::SubsetManifold(4, {3}));
   const ceres::Solver::Options so = PreciseLmOptions(50);
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
@@ -449,6 +465,7 @@ Result<BeamPathFit> FitBeamPath(const optics::HeadModel& head,
   }
   BeamPathFit fit;
   fit.path = {p[0] * 1e3, p[1] * 1e3, p[2] * 1e2};
+  fit.mirror_separation_mm = p[3];
   double cost = 0;
   std::vector<double> res;
   ceres::CRSMatrix crs;
@@ -457,13 +474,18 @@ Result<BeamPathFit> FitBeamPath(const optics::HeadModel& head,
     double rss = 0;
     for (double r : res) rss += r * r;
     fit.rms_mm = std::sqrt(rss / spots.size());
-    const int dof = static_cast<int>(res.size()) - 3;
-    const Eigen::Matrix3d jtj = j.transpose() * j;
-    if (dof > 0 && std::abs(jtj.determinant()) > 0) {
-      const Eigen::Matrix3d cov = jtj.inverse() * (rss / dof);
+    const int dof = static_cast<int>(res.size()) - free;
+    const Eigen::MatrixXd jtj = j.transpose() * j;  // over the free parameters, in order
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(jtj);
+    if (dof > 0 && eig.eigenvalues().minCoeff() > 1e-12 * eig.eigenvalues().maxCoeff()) {
+      const Eigen::MatrixXd cov = jtj.inverse() * (rss / dof);
       fit.stderr_offset_x_mrad = std::sqrt(cov(0, 0)) * 1e3;
       fit.stderr_offset_y_mrad = std::sqrt(cov(1, 1)) * 1e3;
       fit.stderr_lateral_colour_pct = std::sqrt(cov(2, 2)) * 1e2;
+      if (fit_mirror_separation) fit.stderr_mirror_separation_mm = std::sqrt(cov(3, 3));
+    } else {
+      fit.stderr_offset_x_mrad = fit.stderr_offset_y_mrad = fit.stderr_lateral_colour_pct =
+          fit.stderr_mirror_separation_mm = std::numeric_limits<double>::quiet_NaN();
     }
   }
   return fit;

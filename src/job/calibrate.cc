@@ -270,7 +270,13 @@ Result<Report> RunCalibrateJob(const LoadedJob& job, const RunOptions& options) 
                                     ", " + std::to_string(z) + "): " + spot.status().message());
           continue;
         }
-        spots.push_back({p, spot->center});
+        // On a head a field calibration has measured, the spot is where the measured head
+        // puts the pointer, not where it was asked to go: the pose then stays metric (the
+        // design map would fold the head's scale into the camera's pose).
+        Eigen::Vector3d where = p;
+        optics::ChiefRay ray;
+        if (previous->head.measured && previous->head.PointerRay(p, &ray)) where = ray.AtHeight(z);
+        spots.push_back({where, spot->center});
         if (z == spec.spot_stage_z_mm.front()) first_level.push_back(spot->center);
         last = std::move(*lit);
       }

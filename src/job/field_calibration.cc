@@ -70,7 +70,13 @@ struct FieldSpec {
   double target_exposure_ms = 300.0;
   bool pointer = true;
   double pointer_exposure_ms = 0.5;
+  // Stage heights of the pointer's spots: two or more let the mirror separation be fitted
+  // (it tilts the chief rays, which only spots off the focal plane see).
+  std::vector<double> pointer_stage_z_mm{0.0, 15.0};
   bool verify = true;            // the second pass
+  // The second pass must measure at most this at the check points, or nothing is saved; 0:
+  // 10 um for marked targets (the bar), 50 um for pointer spots (~19 um scatter each).
+  double max_error_rms_um_after = 0.0;
   fit::HeadFitOptions head_fit;
   bool residual_table = true;    // physics plus a table of what it leaves
   int correction_nodes = 65;     // correction.csv: nodes per side over the grid
@@ -124,7 +130,9 @@ Status ReadSpec(const LoadedJob& job, FieldSpec* s, hw::MachineConfig* machine) 
     ConfigReader& p = r.Section("pointer");
     p.Read("enabled", &s->pointer);
     p.Read("exposure_ms", &s->pointer_exposure_ms);
+    p.Read("stage_z_mm", &s->pointer_stage_z_mm);
     if (p.ok() && !(s->pointer_exposure_ms > 0)) p.Fail("exposure_ms", "must be > 0");
+    if (p.ok() && s->pointer_stage_z_mm.empty()) p.Fail("stage_z_mm", "must list at least one height");
   }
   if (r.Has("fit")) {
     ConfigReader& f = r.Section("fit");
@@ -135,6 +143,11 @@ Status ReadSpec(const LoadedJob& job, FieldSpec* s, hw::MachineConfig* machine) 
     f.Read("residual_table", &s->residual_table);
   }
   r.Read("verify", &s->verify);
+  r.Read("max_error_rms_um_after", &s->max_error_rms_um_after);
+  if (r.ok() && !(s->max_error_rms_um_after >= 0)) r.Fail("max_error_rms_um_after", "must be >= 0");
+  if (s->max_error_rms_um_after == 0) {
+    s->max_error_rms_um_after = s->target_kind == "pointer" ? 50.0 : 10.0;
+  }
   ConfigReader& out = r.Section("output");
   out.Require("calibration");
   std::string path;
@@ -327,11 +340,26 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
                            Num(reach, 2) + " mm, beyond the head's field of +-" +
                            Num(head_info.field_half_size_mm, 2) + " mm");
   }
+  if (spec.pointer) {
+    const double lo = machine.stage->min_z_mm(), hi = machine.stage->max_z_mm();
+    for (double z : spec.pointer_stage_z_mm) {
+      if (z < lo || z > hi) {
+        return InvalidArgument(job.path + ": pointer.stage_z_mm: " + Num(z, 2) +
+                               " mm is outside the stage travel [" + Num(lo, 2) + ", " +
+                               Num(hi, 2) + "] mm");
+      }
+    }
+  }
   INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir));
   const std::filesystem::path dir(options.out_dir);
-  auto finish = [&](bool ok, const std::string& error) {
-    return FinishReport(report, ok, error, wall_start, options.out_dir,
-                        StatusCode::kFailedPrecondition);
+  // A failed measurement is failed_precondition; a device's fault or a cancel keeps its own
+  // code (exit 1 or 130, not 2: the input was fine).
+  auto finish = [&](bool ok, const std::string& error,
+                    StatusCode code = StatusCode::kFailedPrecondition) {
+    return FinishReport(report, ok, error, wall_start, options.out_dir, code);
+  };
+  auto fail = [&](const std::string& prefix, const Status& st) {
+    return finish(false, prefix + st.ToString(), st.code());
   };
   const auto cancelled = [&] { return options.cancel != nullptr && options.cancel->load(); };
   auto log = Logger("job");
@@ -347,7 +375,7 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
   for (const Status& st : {machine.camera->SetBinning(1), machine.stage->MoveTo(0.0),
                            machine.scanner->StopPointer(), machine.person->ClearTable(),
                            machine.camera->SetExposure(spec.board_exposure_ms * 1e3)}) {
-    if (!st.ok()) return finish(false, "plate: " + st.ToString());
+    if (!st.ok()) return fail("plate: ", st);
   }
   const Status laid = machine.person->PlaceBoardOnPlate();
   if (!laid.ok()) {
@@ -355,7 +383,7 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
                              laid.ToString());
   }
   auto board_frame = machine.camera->Grab();
-  if (!board_frame.ok()) return finish(false, "plate: " + board_frame.status().ToString());
+  if (!board_frame.ok()) return fail("plate: ", board_frame.status());
   auto corners = vision::FindChessboard(View(*board_frame),
                                         {spec.board.inner_cols, spec.board.inner_rows});
   (void)machine.person->RemoveBoard();
@@ -377,7 +405,9 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
     Vector3d cmd;
     Vector2d plate;
   };
+  // `plane_z`: the plate's top in the galvo frame (the stage's height: it moves along z).
   const auto measure_spots = [&](const std::string& phase, const std::vector<Vector3d>& commands,
+                                 double plane_z,
                                  std::vector<std::optional<Vector2d>>* on_plate) -> Status {
     INSITU_RETURN_IF_ERROR(machine.camera->SetExposure(spec.pointer_exposure_ms * 1e3));
     (void)machine.scanner->StopPointer();
@@ -399,23 +429,31 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
                                   ") mm: " + spot.status().message());
         continue;
       }
-      (*on_plate)[k] = calib::PixelsOnPlane({spot->center}, cam, plate.camera_from_plate)[0];
+      (*on_plate)[k] = calib::PixelsOnPlane(
+          {spot->center}, cam,
+          plate.camera_from_plate * Eigen::Translation3d(0.0, 0.0, plane_z))[0];
     }
     return machine.scanner->StopPointer();
   };
   const bool by_pointer = spec.target_kind == "pointer";
   std::vector<PointerSpot> pointer_spots;
   if (spec.pointer && !by_pointer) {
-    std::vector<Vector3d> nodes;
-    for (const Target& t : targets) {
-      if (!t.check) nodes.emplace_back(t.nominal.x(), t.nominal.y(), 0.0);
+    for (double z : spec.pointer_stage_z_mm) {
+      const Status moved = machine.stage->MoveTo(z);
+      if (!moved.ok()) return fail("pointer: ", moved);
+      std::vector<Vector3d> nodes;
+      for (const Target& t : targets) {
+        if (!t.check) nodes.emplace_back(t.nominal.x(), t.nominal.y(), z);
+      }
+      std::vector<std::optional<Vector2d>> on_plate;
+      const Status st = measure_spots("pointer spot", nodes, z, &on_plate);
+      if (!st.ok()) return fail("pointer: ", st);
+      for (size_t k = 0; k < nodes.size(); ++k) {
+        if (on_plate[k]) pointer_spots.push_back({nodes[k], *on_plate[k]});
+      }
     }
-    std::vector<std::optional<Vector2d>> on_plate;
-    const Status st = measure_spots("pointer spot", nodes, &on_plate);
-    if (!st.ok()) return finish(false, "pointer: " + st.ToString());
-    for (size_t k = 0; k < nodes.size(); ++k) {
-      if (on_plate[k]) pointer_spots.push_back({nodes[k], *on_plate[k]});
-    }
+    const Status back = machine.stage->MoveTo(0.0);
+    if (!back.ok()) return fail("pointer: ", back);
   }
 
   // 3-4. Mark the targets as the head is, and measure them.
@@ -441,7 +479,7 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
         commands.push_back(t.command);
       }
       std::vector<std::optional<Vector2d>> on_plate;
-      INSITU_RETURN_IF_ERROR(measure_spots(pass, commands, &on_plate));
+      INSITU_RETURN_IF_ERROR(measure_spots(pass, commands, 0.0, &on_plate));
       *found = 0;
       for (size_t k = 0; k < targets.size(); ++k) {
         targets[k].plate = on_plate[k];
@@ -473,14 +511,14 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
   };
   if (!by_pointer) {
     const Status fresh = machine.person->FreshPlate();
-    if (!fresh.ok()) return finish(false, "plate: " + fresh.ToString());
+    if (!fresh.ok()) return fail("plate: ", fresh);
   }
   int found_before = 0;
   const Status first = mark_and_measure("targets", [](const Vector3d& p, Vector3d* c) {
     *c = p;
     return true;
   }, &found_before);
-  if (!first.ok()) return finish(false, "targets: " + first.ToString());
+  if (!first.ok()) return fail("targets: ", first);
   const int expected = static_cast<int>(targets.size());
   report.metrics["targets_expected"] = expected;
   report.metrics["targets_found"] = found_before;
@@ -582,9 +620,24 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
   if (!pointer_spots.empty()) {
     std::vector<fit::GalvoSample> spots;
     for (const PointerSpot& p : pointer_spots) spots.push_back({p.cmd, physics->galvo_from_plate() * p.plate});
-    auto path = fit::FitBeamPath(head.model, spots);
+    double z_lo = 1e300, z_hi = -1e300;
+    for (const fit::GalvoSample& g : spots) {
+      z_lo = std::min(z_lo, g.cmd.z());
+      z_hi = std::max(z_hi, g.cmd.z());
+    }
+    const bool fit_e = z_hi - z_lo >= 2.0;
+    auto path = fit::FitBeamPath(head.model, spots, fit_e);
     if (!path.ok()) return finish(false, "pointer: " + path.status().ToString());
     head.pointer = path->path;
+    if (fit_e) {
+      // The same mirrors carry both beams.
+      head.model.built.mirror_separation_mm = path->mirror_separation_mm;
+      report.metrics["head_mirror_separation_mm"] = path->mirror_separation_mm;
+      report.metrics["head_mirror_separation_mm_stderr"] = path->stderr_mirror_separation_mm;
+    } else {
+      report.warnings.push_back("the pointer's spots lie on one plane: the mirror separation "
+                                "stays the design's (pointer.stage_z_mm lists one height)");
+    }
     report.metrics["pointer_offset_x_mrad"] = path->path.offset_x_mrad;
     report.metrics["pointer_offset_y_mrad"] = path->path.offset_y_mrad;
     report.metrics["pointer_lateral_colour_pct"] = path->path.lateral_colour_pct;
@@ -596,37 +649,60 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
     return chosen.CommandFor(p, c);
   };
   {
+    // Within the grid (and its targets) every correction must be one the head can take.
+    for (int j = 0; j <= 40; ++j) {
+      for (int i = 0; i <= 40; ++i) {
+        const double x = -reach + reach * i / 20.0, y = -reach + reach * j / 20.0;
+        Vector3d c;
+        const double lim = head_info.field_half_size_mm;
+        if (!corrected({x, y, 0.0}, &c) || (lim > 0 && (std::abs(c.x()) > lim || std::abs(c.y()) > lim))) {
+          return finish(false, "the correction would send (" + Num(x, 2) + ", " + Num(y, 2) +
+                                   ") mm outside the head's range (+-" + Num(lim, 2) +
+                                   " mm): reduce grid.half_size_mm");
+        }
+      }
+    }
+    // The tables cover the head's whole field. Beyond the grid the physics extrapolates; a node
+    // it cannot bring within the head's range takes the correction at the grid's edge.
+    const double half = head_info.field_half_size_mm > 0 ? head_info.field_half_size_mm : reach;
+    int clamped = 0;
+    const auto offset_at = [&](double x, double y) {
+      Vector3d c;
+      if (corrected({x, y, 0.0}, &c) && std::abs(c.x()) <= half && std::abs(c.y()) <= half) {
+        return Vector2d(c.head<2>() - Vector2d(x, y));
+      }
+      ++clamped;
+      const double cx = std::clamp(x, -reach, reach), cy = std::clamp(y, -reach, reach);
+      return corrected({cx, cy, 0.0}, &c) ? Vector2d(c.head<2>() - Vector2d(cx, cy)) : Vector2d(0, 0);
+    };
     const int m = spec.correction_nodes;
     std::vector<double> xs(m), ys(m);
     std::vector<Vector2d> offsets;
-    for (int i = 0; i < m; ++i) xs[i] = ys[i] = -reach + 2.0 * reach * i / (m - 1);
+    for (int i = 0; i < m; ++i) xs[i] = ys[i] = -half + 2.0 * half * i / (m - 1);
     for (double y : ys) {
-      for (double x : xs) {
-        Vector3d c;
-        if (!corrected({x, y, 0.0}, &c) ||
-            (head_info.field_half_size_mm > 0 &&
-             (std::abs(c.x()) > head_info.field_half_size_mm || std::abs(c.y()) > head_info.field_half_size_mm))) {
-          return finish(false, "the correction would send (" + Num(x, 2) + ", " + Num(y, 2) +
-                                   ") mm outside the head's range (+-" +
-                                   Num(head_info.field_half_size_mm, 2) + " mm): reduce grid.half_size_mm");
-        }
-        offsets.push_back(c.head<2>() - Vector2d(x, y));
-      }
+      for (double x : xs) offsets.push_back(offset_at(x, y));
     }
     auto table = optics::GridTable::Make(xs, ys, offsets);
-    if (!table.ok()) return finish(false, table.status().ToString());
+    if (!table.ok()) return finish(false, table.status().ToString(), StatusCode::kInternal);
     const pattern::CorrectionTable correction(*table);
     if (WriteFileAtomically((dir / "correction.csv").string(), correction.ToCsv()).ok()) {
       report.artifacts["correction"] = "correction.csv";
     }
     if (head_info.field_half_size_mm > 0) {
-      const auto cor = hw::lmc::FromCorrection(
-          [&](double x, double y) {
-            Vector3d c;
-            return corrected({x, y, 0.0}, &c) ? Vector2d(c.head<2>() - Vector2d(x, y)) : Vector2d(0, 0);
-          },
-          2.0 * head_info.field_half_size_mm, hw::lmc::CorFormat::kJcz2);
-      if (hw::lmc::WriteCor((dir / "field.cor").string(), cor).ok()) report.artifacts["field_cor"] = "field.cor";
+      // EzCad's table over the lens field, in insitu's default reading (docs/hardware.md). It
+      // holds the correction on top of what the head does now (its controller's own table): on
+      // an LMC board it is to be composed with the board's current table, not loaded alone.
+      const auto cor = hw::lmc::FromCorrection(offset_at, 2.0 * head_info.field_half_size_mm,
+                                               hw::lmc::CorFormat::kJcz2);
+      if (hw::lmc::WriteCor((dir / "field.cor").string(), cor).ok()) {
+        report.artifacts["field_cor"] = "field.cor";
+      }
+    }
+    if (clamped > 0) {
+      report.warnings.push_back(
+          std::to_string(clamped) + " nodes of correction.csv / field.cor beyond the measured "
+          "grid lie where the corrected command would leave the head's range: they take the "
+          "correction at the grid's edge");
     }
   }
   if (WriteFieldCsv(targets, physics->galvo_from_plate(), (dir / "field.csv").string()).ok()) {
@@ -654,15 +730,35 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
 
   // 6. The second pass through the correction, measured in the same frame.
   if (spec.verify) {
-    if (cancelled()) return finish(false, "cancelled");
+    if (cancelled()) return finish(false, "cancelled", StatusCode::kCancelled);
     if (!by_pointer) {
       const Status again = machine.person->FreshPlate();
-      if (!again.ok()) return finish(false, "second pass: " + again.ToString());
+      if (!again.ok()) return fail("second pass: ", again);
     }
+    std::vector<bool> found_first;
+    for (const Target& t : targets) found_first.push_back(t.plate.has_value());
     int found_after = 0;
     const Status second = mark_and_measure("corrected targets", corrected, &found_after);
-    if (!second.ok()) return finish(false, "second pass: " + second.ToString());
+    if (!second.ok()) return fail("second pass: ", second);
     report.metrics["targets_found_after"] = found_after;
+    // Before and after on the same targets: one the correction sent off (or spoilt) is a
+    // failure, never a point quietly left out of the after figure.
+    std::string lost;
+    int n_lost = 0;
+    for (size_t k = 0; k < targets.size(); ++k) {
+      if (found_first[k] && !targets[k].plate) {
+        if (n_lost++ < 6) {
+          lost += std::string(lost.empty() ? "" : ", ") + "(" + Num(targets[k].nominal.x(), 2) +
+                  ", " + Num(targets[k].nominal.y(), 2) + ")";
+        }
+      }
+    }
+    if (n_lost > 0) {
+      return finish(false, "second pass: " + std::to_string(n_lost) +
+                               " targets measured in the first pass were not found through the "
+                               "correction (" + lost + (n_lost > 6 ? ", ..." : "") +
+                               " mm; the warnings say why); the calibration was not saved");
+    }
     std::vector<fit::GalvoSample> after_check, after_grid;
     for (const Target& t : targets) {
       if (!t.plate) continue;
@@ -683,6 +779,13 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
     }
     log->info("field: {:.1f} um rms after ({:.1f} % removed)", after.rms_um,
               report.metrics["distortion_removed_pct"]);
+    if (after.rms_um > spec.max_error_rms_um_after || after.rms_um >= before.rms_um) {
+      return finish(false, "second pass: the corrected field measures " + Num(after.rms_um, 1) +
+                               " um rms at the check points (before: " + Num(before.rms_um, 1) +
+                               " um; accepted: up to " + Num(spec.max_error_rms_um_after, 1) +
+                               " um and less than before); the calibration was not saved. Check "
+                               "field_after.png: a pattern means the plate or camera moved");
+    }
   }
 
   // 7. The machine calibration: the measured head, and the camera's pose in the galvo frame
@@ -697,7 +800,7 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
   plate_from_galvo.translation().head<2>() = pg.translation();
   set.galvo.camera_from_galvo = plate.camera_from_plate * plate_from_galvo;
   const Status saved = SaveMeasuredCalibration(set, spec.output_path, options.out_dir, &report);
-  if (!saved.ok()) return finish(false, saved.ToString());
+  if (!saved.ok()) return fail("", saved);
   return finish(true, "");
 }
 

@@ -229,7 +229,7 @@ void ReadWorld(ConfigReader& r, sim::WorldOptions* w) {
 
   ConfigReader& p = r.Section("part");
   sim::PartOptions& po = w->part;
-  p.ReadEnum("kind", &po.kind, {"none", "plane", "step_gauge", "arc", "insert"});
+  p.ReadEnum("kind", &po.kind, {"none", "plane", "step_gauge", "arc", "insert", "grid_plate"});
   p.ReadArray("position_mm", po.position_mm.data(), 2);
   p.Read("rotation_deg", &po.rotation_deg);
   p.Read("albedo", &po.albedo);
@@ -252,6 +252,13 @@ void ReadWorld(ConfigReader& r, sim::WorldOptions* w) {
   p.Read("insert_hole_diameter_mm", &po.insert_hole_diameter_mm);
   p.Read("insert_rake_deg", &po.insert_rake_deg);
   p.Read("insert_rake_land_mm", &po.insert_rake_land_mm);
+  p.Read("grid_plate_pitch_mm", &po.grid_plate_pitch_mm);
+  p.Read("grid_plate_cross_mm", &po.grid_plate_cross_mm);
+  p.Read("grid_plate_line_um", &po.grid_plate_line_um);
+  p.Read("grid_plate_size_mm", &po.grid_plate_size_mm);
+  p.Read("grid_plate_thickness_mm", &po.grid_plate_thickness_mm);
+  p.Read("grid_plate_chrome_albedo", &po.grid_plate_chrome_albedo);
+  p.Read("grid_plate_glass_albedo", &po.grid_plate_glass_albedo);
   if (p.ok()) p.FailFromValidate(po.Validate());
 
   ConfigReader& st = r.Section("stage");

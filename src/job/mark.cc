@@ -369,6 +369,7 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
     placed.insert(placed.end(), placed_items.back().begin(), placed_items.back().end());
   }
   pattern::FieldCorrection correction;
+  bool bypassed_measured_head = false;
   if (!mark.correction_file.empty()) {
     auto table = pattern::CorrectionTable::Load(mark.correction_file);
     if (!table.ok()) return table.status().Prefixed(job.path + ": head.correction");
@@ -387,12 +388,14 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
   INSITU_ASSIGN_OR_RETURN(ScanMachine up, BringUp(job, spec, machine_config));
   if (!correction && up.calibration.head.measured) {
     // The head the field calibration measured: every point is sent as the command that puts
-    // the marking beam on it. A point the head cannot reach keeps its command and is refused
-    // by the field check in Emit.
+    // the marking beam on it. Where no command does (the inverse does not converge), Emit
+    // refuses the point by name: it is never marked uncorrected.
     correction = [head = up.calibration.head](const Eigen::Vector3d& p) {
       Eigen::Vector3d c;
-      return head.MarkCommandFor(p, &c) ? c : p;
+      return head.MarkCommandFor(p, &c) ? c : Eigen::Vector3d::Constant(NAN);
     };
+  } else if (correction && up.calibration.head.measured) {
+    bypassed_measured_head = true;
   }
   {
     // The list's limits are the head's own unless the job narrows them.
@@ -412,6 +415,11 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
   }
 
   INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir));
+  if (bypassed_measured_head) {
+    report.warnings.push_back(
+        "head.correction / head.model_extension is used in place of the head the calibration "
+        "measured (field_calibration): marks follow that table, not the measured head");
+  }
   const std::filesystem::path dir(options.out_dir);
   auto finish = [&](bool ok, const std::string& error) {
     return FinishReport(report, ok, error, wall_start, options.out_dir, StatusCode::kDeviceError);

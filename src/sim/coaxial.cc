@@ -4,7 +4,8 @@
 // field the chief rays stay within a degree of the centre ray: the image is the
 // surface seen along that ray, scaled by pixel_on_part_um and turned by the
 // sensor's mounting rotation. The picture is the surface's reflectance under
-// the coaxial light (part or plate albedo, times what the marks left of it),
+// the coaxial light (part or plate albedo, a reticle's pattern averaged over
+// each pixel's footprint, times what the marks left of it),
 // blurred per pixel by diffraction and by defocus (a disc of diameter 2 NA dz,
 // sigma NA dz / 2), then shot and read noise and 8-bit quantisation.
 #include <algorithm>
@@ -95,7 +96,11 @@ Result<Frame> SimWorld::GrabCoaxial(double exposure_us) {
           p += slope * (top - (centre.point_in_world.z() - plate_z));
           top = scene_->TrueHeightAt(p.x(), p.y());
           const bool on_part = top > 0.0;
-          const double albedo = on_part ? options_.part.albedo : options_.stage.plate_albedo;
+          // The part's reflectance over the pixel's footprint (a reticle's 9 um lines are
+          // under two pixels wide: sampling their centres would put them on the pixel grid;
+          // the triangle of one pixel's half-width: scene.h).
+          const double albedo = on_part ? scene_->PartAlbedoAt(p.x(), p.y(), px_mm)
+                                        : options_.stage.plate_albedo;
           const size_t i = static_cast<size_t>(v) * w + u;
           reflectance[i] = static_cast<float>(albedo * MarkFactor(p.x(), p.y(), 0.5 * px_mm, on_part));
           const double dz = std::abs(focus_z - (plate_z + top)) / ray.up.z();

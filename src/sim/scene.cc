@@ -133,6 +133,16 @@ class InsertShape : public PartShape {
   double rc_, t_, hole_r_, rake_tan_, land_, inradius_, circumradius_;
 };
 
+// Fraction of a triangle kernel of half-width h centred at x0 (unit area) inside [a0, a1].
+double TriangleWeight(double x0, double h, double a0, double a1) {
+  const auto cdf = [h](double s) {
+    if (s <= -h) return 0.0;
+    if (s >= h) return 1.0;
+    return s <= 0.0 ? 0.5 * (s + h) * (s + h) / (h * h) : 1.0 - 0.5 * (h - s) * (h - s) / (h * h);
+  };
+  return cdf(a1 - x0) - cdf(a0 - x0);
+}
+
 }  // namespace
 
 std::unique_ptr<PartShape> MakePartShape(const PartOptions& o) {
@@ -140,6 +150,13 @@ std::unique_ptr<PartShape> MakePartShape(const PartOptions& o) {
   if (o.kind == "step_gauge") return std::make_unique<StepGaugeShape>(o);
   if (o.kind == "arc") return std::make_unique<ArcShape>(o);
   if (o.kind == "insert") return std::make_unique<InsertShape>(o);
+  if (o.kind == "grid_plate") {
+    // The reticle is a glass square of the given thickness: a plane part.
+    PartOptions plate = o;
+    plate.plane_size_mm = {o.grid_plate_size_mm, o.grid_plate_size_mm};
+    plate.plane_thickness_mm = o.grid_plate_thickness_mm;
+    return std::make_unique<PlaneShape>(plate);
+  }
   return nullptr;
 }
 
@@ -171,6 +188,59 @@ double Scene::TrueHeightAt(double x_mm, double y_mm) const {
   const Eigen::Vector3d q = ToLocal({x_mm, y_mm, stage_z_});
   if (shape_->SignedDistance2D(q.x(), q.y()) > 0.0) return 0.0;
   return shape_->Top(q.x(), q.y());
+}
+
+int Scene::grid_plate_crosses_per_side() const {
+  if (part_.kind != "grid_plate") return -1;
+  const double fit = 0.5 * (part_.grid_plate_size_mm - part_.grid_plate_cross_mm);
+  return static_cast<int>(std::floor(fit / part_.grid_plate_pitch_mm + 1e-9));
+}
+
+Eigen::Vector2d Scene::GridCrossInWorld(int i, int j) const {
+  const double x = i * part_.grid_plate_pitch_mm, y = j * part_.grid_plate_pitch_mm;
+  return {part_.position_mm[0] + cos_rot_ * x - sin_rot_ * y,
+          part_.position_mm[1] + sin_rot_ * x + cos_rot_ * y};
+}
+
+double Scene::PartAlbedoAt(double x_mm, double y_mm, double half_mm) const {
+  const Eigen::Vector3d q = ToLocal({x_mm, y_mm, stage_z_});
+  return LocalAlbedo(q.x(), q.y(), half_mm);
+}
+
+double Scene::LocalAlbedo(double x, double y, double half) const {
+  if (part_.kind != "grid_plate") return part_.albedo;
+  const double p = part_.grid_plate_pitch_mm;
+  const double l2 = 0.5 * part_.grid_plate_cross_mm, w2 = 0.5e-3 * part_.grid_plate_line_um;
+  const int n = grid_plate_crosses_per_side();
+  const double chrome = part_.grid_plate_chrome_albedo, glass = part_.grid_plate_glass_albedo;
+  if (half > 2.0 * p) {
+    // A footprint over many crosses sees the chrome's area fraction (two bars less their
+    // shared square per cell).
+    return glass + (chrome - glass) * (4.0 * l2 * w2 * 2.0 - 4.0 * w2 * w2) / (p * p);
+  }
+  const int i0 = static_cast<int>(std::lround(x / p)), j0 = static_cast<int>(std::lround(y / p));
+  if (half <= 0.0) {
+    if (std::abs(i0) > n || std::abs(j0) > n) return glass;
+    const double dx = std::abs(x - i0 * p), dy = std::abs(y - j0 * p);
+    const bool on = (dx <= l2 && dy <= w2) || (dx <= w2 && dy <= l2);
+    return on ? chrome : glass;
+  }
+  // Weight of each cross inside the footprint: horizontal bar + vertical bar - their shared
+  // square, each separable in x and y.
+  const int k = 1 + static_cast<int>(half / p);
+  double covered = 0.0;
+  for (int j = std::max(-n, j0 - k); j <= std::min(n, j0 + k); ++j) {
+    for (int i = std::max(-n, i0 - k); i <= std::min(n, i0 + k); ++i) {
+      const double cx = i * p, cy = j * p;
+      const double hx = TriangleWeight(x, half, cx - l2, cx + l2);
+      const double hy = TriangleWeight(y, half, cy - w2, cy + w2);
+      const double vx = TriangleWeight(x, half, cx - w2, cx + w2);
+      const double vy = TriangleWeight(y, half, cy - l2, cy + l2);
+      covered += hx * hy + vx * vy - vx * hy;
+    }
+  }
+  const double fraction = std::min(1.0, covered);
+  return glass + (chrome - glass) * fraction;
 }
 
 bool Scene::ClipToBox(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double* t0,
@@ -249,7 +319,7 @@ bool Scene::IntersectPart(const Eigen::Vector3d& o_world, const Eigen::Vector3d&
       hit->t = b;
       hit->point_in_world = o_world + d_world * b;
       hit->normal = DirToWorld(n_local);
-      hit->albedo = part_.albedo;
+      hit->albedo = LocalAlbedo(q.x(), q.y(), 0.0);
       hit->on_part = true;
       return true;
     }

@@ -506,6 +506,12 @@ Result<Frame> SimWorld::Grab() {
             }
             albedo = sum / 16.0;
           }
+          // A patterned part (the reticle's lines are far finer than a pixel here): its
+          // reflectance over the pixel's footprint, not at one point.
+          if (hit.on_part) {
+            albedo = scene_->PartAlbedoAt(hit.point_in_world.x(), hit.point_in_world.y(),
+                                          footprint_mm);
+          }
           if (!hit.on_board) {
             albedo *=
                 MarkFactor(hit.point_in_world.x(), hit.point_in_world.y(), 0.5 * footprint_mm,

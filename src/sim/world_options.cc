@@ -111,8 +111,9 @@ Status LightOptions::Validate() const {
 
 Status PartOptions::Validate() const {
   if (kind != "none" && kind != "plane" && kind != "step_gauge" && kind != "arc" &&
-      kind != "insert") {
-    return InvalidArgument("kind must be one of none, plane, step_gauge, arc, insert, got " + kind);
+      kind != "insert" && kind != "grid_plate") {
+    return InvalidArgument(
+        "kind must be one of none, plane, step_gauge, arc, insert, grid_plate, got " + kind);
   }
   if (!(albedo >= 0 && albedo <= 1)) return Bad("albedo", "in [0, 1]", albedo);
   if (!(ablation_depth_um >= 0)) return Bad("ablation_depth_um", ">= 0", ablation_depth_um);
@@ -133,6 +134,27 @@ Status PartOptions::Validate() const {
   if (!Positive(insert_edge_mm)) return Bad("insert_edge_mm", "> 0", insert_edge_mm);
   if (!(insert_hole_diameter_mm >= 0 && insert_hole_diameter_mm < insert_edge_mm / 2)) {
     return Bad("insert_hole_diameter_mm", "in [0, edge/2)", insert_hole_diameter_mm);
+  }
+  if (!Positive(grid_plate_pitch_mm)) return Bad("grid_plate_pitch_mm", "> 0", grid_plate_pitch_mm);
+  if (!Positive(grid_plate_line_um)) return Bad("grid_plate_line_um", "> 0", grid_plate_line_um);
+  // Crosses stand apart (a bar as long as the pitch would make a ruled grid) and are more
+  // than a blob of line.
+  if (!(grid_plate_cross_mm > 2e-3 * grid_plate_line_um &&
+        grid_plate_cross_mm < grid_plate_pitch_mm)) {
+    return Bad("grid_plate_cross_mm", "in (2 line widths, grid_plate_pitch_mm)",
+               grid_plate_cross_mm);
+  }
+  if (!(grid_plate_size_mm >= grid_plate_cross_mm && grid_plate_size_mm <= 1000)) {
+    return Bad("grid_plate_size_mm", "in [grid_plate_cross_mm, 1000]", grid_plate_size_mm);
+  }
+  if (!Positive(grid_plate_thickness_mm)) {
+    return Bad("grid_plate_thickness_mm", "> 0", grid_plate_thickness_mm);
+  }
+  if (!(grid_plate_chrome_albedo >= 0 && grid_plate_chrome_albedo <= 1)) {
+    return Bad("grid_plate_chrome_albedo", "in [0, 1]", grid_plate_chrome_albedo);
+  }
+  if (!(grid_plate_glass_albedo >= 0 && grid_plate_glass_albedo <= 1)) {
+    return Bad("grid_plate_glass_albedo", "in [0, 1]", grid_plate_glass_albedo);
   }
   return Status::Ok();
 }

@@ -140,6 +140,9 @@ TEST(FieldCalibrationJob, AsBuiltHeadIsMeasuredCorrectedAndUsed) {
   // fit's standard error from 121 spots at ~19 um is ~0.003 %; the camera's own scale error
   // adds ~0.005 %).
   EXPECT_NEAR(set->head.pointer.lateral_colour_pct, -0.3, 0.02);
+  // The mirror separation from the pointer's chief rays at 0 and 15 mm: its standard error is
+  // ~0.16 mm (242 spots at ~20 um; 0.9 mm moves an edge spot 13 um at 15 mm); 3 sigma.
+  EXPECT_NEAR(set->head.model.built.mirror_separation_mm, 16.9, 0.5);
 
   // The non-destructive variant: the pointer's spots on the plate instead of marks. Each spot's
   // centroid scatters by ~19 um on the plate (speckle on a 0.4 mm spot: ~0.2 px), so its
@@ -206,6 +209,13 @@ TEST(FieldCalibrationJob, FailuresKeepThePreviousCalibration) {
   EXPECT_NE(weak.status().message().find("targets not found: 25 of the 25"), std::string::npos)
       << weak.status().message();
   EXPECT_NE(weak.status().message().find("(-60.00, -60.00)"), std::string::npos);
+
+  // A second pass that does not meet the acceptance: measured to the end, nothing saved.
+  auto strict = run({"max_error_rms_um_after=0.1", "grid.n=5", "pointer.enabled=false"}, "strict");
+  ASSERT_FALSE(strict.ok());
+  EXPECT_NE(strict.status().message().find("the calibration was not saved"), std::string::npos)
+      << strict.status().message();
+  EXPECT_TRUE(fs::exists(dir / "strict" / "report.json"));
 
   EXPECT_EQ(Slurp(cal), original);
 }

@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <string>
+
 namespace insitu::sim {
 namespace {
 
@@ -80,6 +83,54 @@ TEST(Scene, ArcCrownHasItsNominalHeights) {
   EXPECT_NEAR(scene.TrueHeightAt(0.0, 0.0), part.arc_height_mm, 1e-9);
   EXPECT_NEAR(scene.TrueHeightAt(part.arc_width_mm / 2 - 1e-9, 0.0), part.arc_edge_height_mm,
               1e-6);
+}
+
+
+// The reticle: a glass square of its thickness, chrome crosses where the options put them
+// (turned and shifted with the part), the glass between them, and the pixel-footprint
+// average equal to the chrome's share of the footprint's triangle weight.
+TEST(Scene, GridPlateCarriesChromeCrosses) {
+  PartOptions part;
+  part.kind = "grid_plate";
+  part.position_mm = {0.3, -0.2};
+  part.rotation_deg = 1.0;
+  ASSERT_TRUE(part.Validate().ok());
+  Scene scene(part, StageOptions{});
+  EXPECT_EQ(scene.grid_plate_crosses_per_side(), 6);  // (14 - 0.5) / 2 / 1 mm
+  EXPECT_NEAR(scene.TrueHeightAt(0.3, -0.2), part.grid_plate_thickness_mm, 1e-12);
+  EXPECT_EQ(scene.TrueHeightAt(8.0, 0.0), 0.0);  // off the 14 mm glass
+  const Eigen::Vector2d c = scene.GridCrossInWorld(2, -3);
+  const double t = 1.0 * M_PI / 180.0;
+  EXPECT_NEAR(c.x(), 0.3 + 2.0 * std::cos(t) + 3.0 * std::sin(t), 1e-12);
+  EXPECT_NEAR(c.y(), -0.2 + 2.0 * std::sin(t) - 3.0 * std::cos(t), 1e-12);
+  EXPECT_EQ(scene.PartAlbedoAt(c.x(), c.y()), part.grid_plate_chrome_albedo);
+  // Along the bar 0.2 mm out (inside its 0.25 mm half length), then just past its end.
+  const Eigen::Vector2d along(std::cos(t), std::sin(t));
+  EXPECT_EQ(scene.PartAlbedoAt(c.x() + 0.2 * along.x(), c.y() + 0.2 * along.y()),
+            part.grid_plate_chrome_albedo);
+  EXPECT_EQ(scene.PartAlbedoAt(c.x() + 0.26 * along.x(), c.y() + 0.26 * along.y()),
+            part.grid_plate_glass_albedo);
+  // Half way between crosses: glass.
+  const Eigen::Vector2d mid = 0.5 * (c + scene.GridCrossInWorld(3, -2));
+  EXPECT_EQ(scene.PartAlbedoAt(mid.x(), mid.y()), part.grid_plate_glass_albedo);
+  // A triangle footprint of 10 um half-width centred on a bar away from the crossing: the
+  // 9 um line holds 1 - (5.5 / 10)^2 of its weight.
+  const Eigen::Vector2d bar = c + 0.1 * along;
+  EXPECT_NEAR(scene.PartAlbedoAt(bar.x(), bar.y(), 0.010),
+              0.05 + (0.55 - 0.05) * (1.0 - 0.3025), 1e-3);  // the 1 deg turn: < 1e-3
+  // The ray hits the top at the reticle's thickness and reads the pattern there.
+  Hit hit;
+  ASSERT_TRUE(scene.Intersect({c.x(), c.y(), 100.0}, kDown, 1000.0, &hit));
+  EXPECT_TRUE(hit.on_part);
+  EXPECT_NEAR(hit.point_in_world.z(), part.grid_plate_thickness_mm, 1e-5);
+  EXPECT_EQ(hit.albedo, part.grid_plate_chrome_albedo);
+  // Bad reticles are refused by name.
+  PartOptions bad = part;
+  bad.grid_plate_cross_mm = 1.2;
+  EXPECT_NE(bad.Validate().message().find("grid_plate_cross_mm"), std::string::npos);
+  bad = part;
+  bad.grid_plate_line_um = 0.0;
+  EXPECT_NE(bad.Validate().message().find("grid_plate_line_um"), std::string::npos);
 }
 
 }  // namespace

@@ -158,13 +158,19 @@ class PhysicsPlusTableModel : public FieldModel {
 // the head was fitted to): its input misalignment and lateral colour, from where its spots were
 // measured (galvo frame). Errors: failed_precondition for fewer than 3 spots, or when the solver
 // does not converge.
+// With `fit_mirror_separation`, the head's mirror separation is fitted too: it tilts the chief
+// rays (the pupil's shift) and so shows only in spots at two heights or more (>= 2 mm apart,
+// else failed_precondition).
 struct BeamPathFit {
   optics::BeamPath path;
+  double mirror_separation_mm = 0.0;  // fitted, or the head's as given
   double stderr_offset_x_mrad = 0, stderr_offset_y_mrad = 0, stderr_lateral_colour_pct = 0;
+  double stderr_mirror_separation_mm = 0;  // 0 when not fitted
   double rms_mm = 0.0;  // of the spots about the fitted path
 };
 Result<BeamPathFit> FitBeamPath(const optics::HeadModel& head,
-                                const std::vector<GalvoSample>& spots);
+                                const std::vector<GalvoSample>& spots,
+                                bool fit_mirror_separation = false);
 
 // rms and max of |meas - model.Predict(cmd)| over samples (galvo frame), mm.
 struct ModelError {

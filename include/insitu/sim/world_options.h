@@ -119,7 +119,7 @@ struct LightOptions {
 };
 
 struct PartOptions {
-  std::string kind = "step_gauge";   // none | plane | step_gauge | arc | insert
+  std::string kind = "step_gauge";   // none | plane | step_gauge | arc | insert | grid_plate
   std::array<double, 2> position_mm{0.0, 0.0};  // centre of the footprint on the stage
   double rotation_deg = 0.0;                    // about z
   double albedo = 0.45;                         // diffuse reflectance at 680 nm
@@ -153,6 +153,23 @@ struct PartOptions {
   double insert_hole_diameter_mm = 3.8;
   double insert_rake_deg = 10.0;
   double insert_rake_land_mm = 1.5;
+  // grid_plate: a chrome-on-glass reticle (seed 001 sec. 3.3's calibration grid) lying flat on
+  // the stage: "+" crosses on a square pitch, centred on the glass, every cross whose bars fit
+  // on the glass square. Each bar is grid_plate_cross_mm long (tip to tip) and
+  // grid_plate_line_um wide (seed 001: 9 um). The chrome is on the top face, so the top is the
+  // surface the cameras see (no refraction through the glass). Reflectance as the coaxial
+  // camera sees it under its own (bright-field) light: chrome returns its ~0.6 specular
+  // reflectance into the objective; bare glass only its ~4 % Fresnel reflection (the black
+  // plate under it scatters diffusely, mostly outside the objective's small aperture):
+  // bright crosses on a dark field, contrast ~11:1. Soda-lime reticles are 1.5..3 mm thick
+  // (2.3 mm = 0.09 in is the common one).
+  double grid_plate_pitch_mm = 1.0;
+  double grid_plate_cross_mm = 0.5;
+  double grid_plate_line_um = 9.0;
+  double grid_plate_size_mm = 14.0;
+  double grid_plate_thickness_mm = 2.3;
+  double grid_plate_chrome_albedo = 0.55;
+  double grid_plate_glass_albedo = 0.05;
 
   Status Validate() const;
 };
