@@ -42,6 +42,7 @@
 #include "insitu/pattern/spiral_target.h"
 #include "insitu/vision/circle_targets.h"
 #include "insitu/vision/targets.h"
+#include "job/coaxial_field.h"
 #include "job/progress.h"
 #include "job/save_calibration.h"
 
@@ -59,6 +60,10 @@ struct FieldSpec {
   // spiral: discs marked by the marking laser (seed 003); pointer: the non-destructive variant,
   // the pointer's spot parked on a matte card (measures the pointer's field, not the laser's).
   std::string target_kind = "spiral";
+  // side: the side camera measures targets over the whole field; coaxial: the coaxial camera
+  // measures the head's aim on a reticle over a small field (seed 001).
+  std::string route = "side";
+  CoaxialFieldOptions coaxial;
   pattern::SpiralTargetOptions spiral;
   double mark_speed_mm_per_s = 1000.0;
   double jump_speed_mm_per_s = 5000.0;
@@ -92,6 +97,18 @@ std::string Num(double v, int digits = 3) {
 Status ReadSpec(const LoadedJob& job, FieldSpec* s, hw::MachineConfig* machine) {
   ConfigReader r(job.root);
   ReadJobHeader(r, job, &s->machine);
+  r.ReadEnum("route", &s->route, {"side", "coaxial"});
+  if (r.Has("coaxial")) {
+    ConfigReader& c = r.Section("coaxial");
+    c.Read("half_size_mm", &s->coaxial.half_size_mm);
+    c.Read("n", &s->coaxial.n);
+    c.Read("check_points", &s->coaxial.check_points);
+    c.Read("surface_z_mm", &s->coaxial.surface_z_mm);
+    c.Read("reticle_pitch_mm", &s->coaxial.reticle_pitch_mm);
+    c.Read("exposure_us", &s->coaxial.exposure_us);
+    c.Read("image_mirrored", &s->coaxial.image_mirrored);
+    if (c.ok()) c.FailFromValidate(s->coaxial.Validate());
+  }
   ConfigReader& g = r.Section("grid");
   g.Read("n", &s->n);
   g.Read("half_size_mm", &s->half_size_mm);
@@ -367,6 +384,46 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
     report.warnings.push_back(
         "the calibration is the as-designed file: run the calibrate job first (the camera's "
         "intrinsics measure the targets)");
+  }
+  if (spec.route == "coaxial") {
+    // Seed 001: the head's aim on the reticle lying on the stage. The result is a table for
+    // that small field (correction.csv, for head.correction); the machine calibration is not
+    // changed: it holds the whole field's head from the side camera's route.
+    std::vector<std::string> warnings;
+    spec.coaxial.second_pass = spec.verify;
+    auto r = MeasureCoaxialField(machine, spec.coaxial, options, &warnings);
+    report.warnings.insert(report.warnings.end(), warnings.begin(), warnings.end());
+    if (!r.ok()) return fail("coaxial: ", r.status());
+    report.metrics["check_points"] = static_cast<double>(r->check.size());
+    report.metrics["targets_expected"] = static_cast<double>(r->grid.size() + r->check.size());
+    report.metrics["targets_found"] = static_cast<double>(r->grid.size() + r->check.size());
+    report.metrics["field_error_rms_um_before"] = r->rms_um_before;
+    report.metrics["field_error_max_um_before"] = r->max_um_before;
+    report.metrics["coaxial_pixel_um"] = r->pixel_um;
+    report.metrics["coaxial_rotation_deg"] = r->rotation_deg;
+    if (spec.verify) {
+      report.metrics["field_error_rms_um_after"] = r->rms_um_after;
+      report.metrics["field_error_max_um_after"] = r->max_um_after;
+      report.metrics["distortion_removed_pct"] =
+          r->rms_um_before > 0 ? 100.0 * (1.0 - r->rms_um_after / r->rms_um_before) : 0.0;
+    }
+    const pattern::CorrectionTable table(r->correction);
+    if (WriteFileAtomically((dir / "correction.csv").string(), table.ToCsv()).ok()) {
+      report.artifacts["correction"] = "correction.csv";
+    }
+    std::vector<Target> all;
+    for (const auto* set : {&r->grid, &r->check}) {
+      for (const fit::GalvoSample& g : *set) {
+        Target t{g.cmd.head<2>(), set == &r->check, g.cmd, g.meas, {}};
+        all.push_back(t);
+      }
+    }
+    if (WriteFieldCsv(all, Eigen::Isometry2d::Identity(), (dir / "field.csv").string()).ok()) {
+      report.artifacts["field"] = "field.csv";
+    }
+    log->info("coaxial: {:.2f} um rms before, {:.2f} um after at {} check points",
+              r->rms_um_before, r->rms_um_after, r->check.size());
+    return finish(true, "");
   }
   const calib::CameraIntrinsics& cam = previous->camera;
   const double pitch = 2.0 * spec.half_size_mm / (spec.n - 1);

@@ -148,6 +148,8 @@ void ReadWorld(ConfigReader& r, sim::WorldOptions* w) {
   sh.Read("focus_range_mm", &w->scan_head.focus_range_mm);
   sh.Read("tracking_lag_ms", &w->scan_head.tracking_lag_ms);
   sh.Read("clock_us", &w->scan_head.clock_us);
+  sh.Read("repeatability_urad", &w->scan_head.repeatability_urad);
+  sh.Read("command_bits", &w->scan_head.command_bits);
   ReadBeam(sh.Section("pointer"), &w->scan_head.pointer);
   ReadBeam(sh.Section("marking"), &w->scan_head.marking);
   {

@@ -52,6 +52,14 @@ SimWorld::SimWorld(const WorldOptions& options)
   auto ext = fit::ModelExtension::Make(effects);  // valid: WorldOptions::Validate() checked it
   field_effects_ = std::make_unique<fit::ModelExtension>(ext.ok() ? *ext : fit::ModelExtension());
   scene_->SetBoard(options.board, -1);
+  head_rng_.seed(options.seed * 0x9E3779B97F4A7C15ull + 0x5EEDull);
+}
+
+void SimWorld::NewSettleError() {
+  const double s = options_.scan_head.repeatability_urad * 1e-6;
+  if (!(s > 0)) return;
+  std::normal_distribution<double> n(0.0, s);
+  settle_error_ = {n(head_rng_), n(head_rng_)};
 }
 
 void SimWorld::RemovePart() {
@@ -138,11 +146,14 @@ bool SimWorld::CommandToAngles(const Eigen::Vector3d& p, MirrorAngles* angles) c
   // The head's correction table is built from its design geometry; the mirrors' zero errors,
   // and any field effects the world carries (measured reality), are what the real head adds
   // on top.
-  Eigen::Vector2d xy = p.head<2>();
+  // The command as the controller sends it: command_bits over the field.
+  const auto& sh = options_.scan_head;
+  const double step = 2.0 * sh.field_half_size_mm / std::ldexp(1.0, sh.command_bits);
+  Eigen::Vector2d xy(std::round(p.x() / step) * step, std::round(p.y() / step) * step);
   if (!field_effects_->empty()) xy = field_effects_->Forward(xy, p.z());
   if (!design_optics_->Solve(xy.x(), xy.y(), p.z(), angles)) return false;
-  angles->x_rad += options_.scan_head.x_zero_offset_mrad * 1e-3;
-  angles->y_rad += options_.scan_head.y_zero_offset_mrad * 1e-3;
+  angles->x_rad += sh.x_zero_offset_mrad * 1e-3 + settle_error_.x_rad;
+  angles->y_rad += sh.y_zero_offset_mrad * 1e-3 + settle_error_.y_rad;
   return true;
 }
 
@@ -165,6 +176,7 @@ Status SimWorld::StartPointerLine(const Eigen::Vector3d& from, const Eigen::Vect
   // Where the mirrors rest now: on the running program's current command, else as they were.
   if (pointer_) CommandToAngles(PointerCommandAt(now_s_), &rest_angles_);
   pointer_ = PointerProgram{from, to, speed_mm_per_s, now_s_};
+  NewSettleError();
   return Status::Ok();
 }
 
@@ -330,6 +342,8 @@ Status SimWorld::ExecuteMarkingList(const std::vector<ListMove>& moves, const Ma
   Cursor cursor{last_command_};
   int64_t i = 0;  // list tick
   for (size_t move = 0; move <= moves.size(); ++move) {
+    // A jump ends where the mirrors settle this time: their repeatability.
+    if (move < moves.size() && moves[move].kind == ListMove::Kind::kJump) NewSettleError();
     emit(move, i, &cursor, &ticks);
     for (const Tick& k : ticks) {
       ++i;

@@ -42,6 +42,10 @@ Status ScanHeadOptions::Validate() const {
     if (!ext.ok()) return ext.status().Prefixed("field_effects");
   }
   if (!Positive(field_half_size_mm)) return Bad("field_half_size_mm", "> 0", field_half_size_mm);
+  if (!(repeatability_urad >= 0 && repeatability_urad <= 1000)) {
+    return Bad("repeatability_urad", "in [0, 1000]", repeatability_urad);
+  }
+  if (command_bits < 12 || command_bits > 24) return Bad("command_bits", "in 12..24", command_bits);
   if (!(focus_range_mm >= 0.0)) return Bad("focus_range_mm", ">= 0", focus_range_mm);
   if (!(tracking_lag_ms >= 0.0 && tracking_lag_ms < 100.0)) {
     return Bad("tracking_lag_ms", "in [0, 100)", tracking_lag_ms);

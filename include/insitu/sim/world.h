@@ -13,6 +13,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <random>
 #include <vector>
 
 #include <Eigen/Core>
@@ -213,6 +214,10 @@ class SimWorld {
   std::unique_ptr<MarkMap> marks_;  // what the pulses ablated, for the cameras
   std::unique_ptr<fit::ModelExtension> field_effects_;  // carried by the head (may be empty)
   Eigen::Vector3d last_command_ = Eigen::Vector3d::Zero();
+  // The mirrors' settling error since the last jump (repeatability), optical angles.
+  MirrorAngles settle_error_;
+  std::mt19937_64 head_rng_;
+  void NewSettleError();
   FrameTruth truth_;
   // Ambient image (electrons per second per pixel), cached per stage height and binning.
   std::vector<float> ambient_e_per_s_;

@@ -75,6 +75,13 @@ struct ScanHeadOptions {
   double focus_range_mm = 25.0;        // dynamic focus travel +-
   double tracking_lag_ms = 0.16;       // first-order lag of the mirrors behind the command
   double clock_us = 10.0;              // list clock
+  // Where a mirror settles after a jump differs from the last time by this (rms per axis,
+  // optical angle): the galvos' repeatability. Scan heads of the intelliSCAN class quote
+  // < 2 urad; at 255 mm that is ~0.5 um on the field.
+  double repeatability_urad = 2.0;
+  // Resolution of the command the controller sends the head: 20 bits over the field (SL2-100
+  // on RTC5/6; 16 for XY2-100 heads such as LMC boards drive): 0.13 um steps on +-70 mm.
+  int command_bits = 20;
   BeamOptions pointer;                 // red pointer (class 2)
   BeamOptions marking{1064.0, 30000.0, 0.040, 1.3};  // fibre marking laser
   CoaxialCameraOptions coaxial;
