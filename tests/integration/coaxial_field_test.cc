@@ -150,11 +150,13 @@ TEST(CoaxialField, AsBuiltHeadToThreeMicrometresInTenMillimetres) {
   EXPECT_NEAR(r->rms_um_before, truth_before.rms_um, 0.5);
   EXPECT_NEAR(r->max_um_before, truth_before.max_um, 1.0);
   // Each aim from ~20 crosses at ~0.005 px (0.03 um) each, through a similarity: a few
-  // hundredths of a um of noise; the simulator's pixel footprint and blur are symmetric, so
-  // no bias beyond that. 0.3 um rms and 1 um max leave room for what the similarity does
-  // not model and still sit an order below the 3 um the route must reach.
-  EXPECT_LT(measurement.rms_um, 0.3);
-  EXPECT_LT(measurement.max_um, 1.0);
+  // hundredths of a um of noise. But the head itself settles differently after every jump
+  // (scan_head.repeatability_urad: 2 urad rms per axis, 0.51 um at 256 mm, 0.72 um as a 2D
+  // rms), which the measurement sees and this deterministic truth model does not: the two
+  // differ by that, 0.72 um rms (20 % margin and 0.1 um for the rest), and by under 4 of its
+  // sigmas (2.9 um) at the worst of ~420 aims.
+  EXPECT_LT(measurement.rms_um, 0.72 * 1.2 + 0.1);
+  EXPECT_LT(measurement.max_um, 2.9);
   // Seed 001: <= 3 um in a 10 mm field after the second closed-loop pass, by the camera and
   // in the truth. What the table leaves is bilinear interpolation of a smooth field on 1 mm
   // cells (curvature of the two-mirror field, c3: well under a um) plus the measurement.
@@ -162,7 +164,8 @@ TEST(CoaxialField, AsBuiltHeadToThreeMicrometresInTenMillimetres) {
   EXPECT_LE(r->max_um_after, 3.0);
   EXPECT_LE(truth_after.rms_um, 3.0);
   EXPECT_LE(truth_after.max_um, 3.0);
-  EXPECT_NEAR(r->rms_um_after, truth_after.rms_um, 0.5);
+  // The measured after holds the second aim's settling error (0.72 um rms), the model's not.
+  EXPECT_NEAR(r->rms_um_after, truth_after.rms_um, 0.72 + 0.2);
   // The camera calibrated on the reticle: 5 um pixels to what ~20 crosses per frame over
   // 321 frames give (1e-4 of scale), and the sensor's 0.4 deg turn against the galvo frame as
   // the rigid fit sets it: that frame takes the field's own mean rotation as its axes, and the
