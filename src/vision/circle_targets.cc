@@ -30,6 +30,7 @@
 #include <Eigen/LU>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+#include "vision/image_cv.h"
 
 namespace insitu::vision {
 namespace {
@@ -40,29 +41,6 @@ std::string Format(const char* fmt, double a, double b = 0.0, double c = 0.0) {
   return buf;
 }
 
-Status CheckImage(const ImageView& image) {
-  if (image.data == nullptr || image.width <= 0 || image.height <= 0) {
-    return InvalidArgument("empty image");
-  }
-  if (image.bit_depth != 8 && (image.bit_depth < 10 || image.bit_depth > 16)) {
-    return InvalidArgument("bit depth " + std::to_string(image.bit_depth) +
-                           " not supported (8, or 10..16 in 16-bit samples)");
-  }
-  const size_t row = static_cast<size_t>(image.width) * (image.is_8bit() ? 1 : 2);
-  if (image.stride_bytes < row) {
-    return InvalidArgument("stride " + std::to_string(image.stride_bytes) +
-                           " bytes is shorter than a row of " + std::to_string(row) + " bytes");
-  }
-  return Status::Ok();
-}
-
-cv::Mat ToFloat(const ImageView& image) {
-  const cv::Mat src(image.height, image.width, image.is_8bit() ? CV_8UC1 : CV_16UC1,
-                    const_cast<void*>(image.data), image.stride_bytes);
-  cv::Mat out;
-  src.convertTo(out, CV_32F);
-  return out;
-}
 
 double Median(std::vector<float>* v) {
   if (v->empty()) return std::numeric_limits<double>::quiet_NaN();
@@ -225,11 +203,11 @@ Result<std::vector<CircleTarget>> FindCircleTargets(const ImageView& image,
                                                     const CircleTargetOptions& o,
                                                     std::vector<RejectedBlob>* rejected) {
   INSITU_RETURN_IF_ERROR(o.Validate());
-  INSITU_RETURN_IF_ERROR(CheckImage(image));
+  INSITU_RETURN_IF_ERROR(CheckImageView(image, ""));
   if (rejected != nullptr) rejected->clear();
   std::vector<CircleTarget> targets;
   try {
-    const cv::Mat raw = ToFloat(image);
+    const cv::Mat raw = ToFloatMat(image);
     cv::Mat smooth;
     cv::GaussianBlur(raw, smooth, cv::Size(3, 3), 0.8, 0.8, cv::BORDER_REPLICATE);
 

@@ -35,6 +35,8 @@
 #include <opencv2/imgproc.hpp>
 #include <string>
 
+#include "vision/image_cv.h"
+
 namespace insitu::vision {
 namespace {
 
@@ -44,29 +46,6 @@ std::string Format(const char* fmt, double a, double b = 0.0) {
   return buf;
 }
 
-Status CheckImage(const ImageView& image) {
-  if (image.data == nullptr || image.width <= 0 || image.height <= 0) {
-    return InvalidArgument("crosses: empty image");
-  }
-  if (image.bit_depth != 8 && (image.bit_depth < 10 || image.bit_depth > 16)) {
-    return InvalidArgument("crosses: bit depth " + std::to_string(image.bit_depth) +
-                           " not supported (8, or 10..16 in 16-bit samples)");
-  }
-  const size_t row = static_cast<size_t>(image.width) * (image.is_8bit() ? 1 : 2);
-  if (image.stride_bytes < row) {
-    return InvalidArgument("crosses: stride " + std::to_string(image.stride_bytes) +
-                           " bytes is shorter than a row of " + std::to_string(row) + " bytes");
-  }
-  return Status::Ok();
-}
-
-cv::Mat ToFloat(const ImageView& image) {
-  const cv::Mat src(image.height, image.width, image.is_8bit() ? CV_8UC1 : CV_16UC1,
-                    const_cast<void*>(image.data), image.stride_bytes);
-  cv::Mat out;
-  src.convertTo(out, CV_32F);
-  return out;
-}
 
 // Median of a sample (reorders it); 0 when empty.
 double Median(std::vector<float>* v) {
@@ -209,10 +188,10 @@ Status CrossOptions::Validate() const {
 
 Result<std::vector<Cross>> FindCrosses(const ImageView& image, const CrossOptions& o) {
   INSITU_RETURN_IF_ERROR(o.Validate());
-  INSITU_RETURN_IF_ERROR(CheckImage(image));
+  INSITU_RETURN_IF_ERROR(CheckImageView(image, "crosses: "));
   std::vector<Cross> crosses;
   try {
-    cv::Mat raw = ToFloat(image);
+    cv::Mat raw = ToFloatMat(image);
     if (!o.bright) raw = static_cast<double>(image.max_value()) - raw;
 
     // Segmentation on a lightly smoothed copy against the opened background.

@@ -1,0 +1,41 @@
+// What the OpenCV-based finders in vision/ share (private to the module): the check of an
+// ImageView before it is touched, and its samples as a float matrix.
+#pragma once
+
+#include <string>
+
+#include <opencv2/core.hpp>
+
+#include "insitu/core/status.h"
+#include "insitu/vision/image.h"
+
+namespace insitu::vision {
+
+// invalid_argument, prefixed with `what`, for an empty image, a bit depth other than 8 or
+// 10..16 (in 16-bit samples), or a stride shorter than a row.
+inline Status CheckImageView(const ImageView& image, const std::string& what) {
+  if (image.data == nullptr || image.width <= 0 || image.height <= 0) {
+    return InvalidArgument(what + "empty image");
+  }
+  if (image.bit_depth != 8 && (image.bit_depth < 10 || image.bit_depth > 16)) {
+    return InvalidArgument(what + "bit depth " + std::to_string(image.bit_depth) +
+                           " not supported (8, or 10..16 in 16-bit samples)");
+  }
+  const size_t row = static_cast<size_t>(image.width) * (image.is_8bit() ? 1 : 2);
+  if (image.stride_bytes < row) {
+    return InvalidArgument(what + "stride " + std::to_string(image.stride_bytes) +
+                           " bytes is shorter than a row of " + std::to_string(row) + " bytes");
+  }
+  return Status::Ok();
+}
+
+// The image's gray levels as CV_32F (a copy).
+inline cv::Mat ToFloatMat(const ImageView& image) {
+  const cv::Mat src(image.height, image.width, image.is_8bit() ? CV_8UC1 : CV_16UC1,
+                    const_cast<void*>(image.data), image.stride_bytes);
+  cv::Mat out;
+  src.convertTo(out, CV_32F);
+  return out;
+}
+
+}  // namespace insitu::vision
