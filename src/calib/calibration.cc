@@ -10,6 +10,7 @@
 #include <opencv2/core.hpp>
 
 #include "insitu/core/config.h"
+#include "insitu/optics/newton.h"
 
 namespace insitu::calib {
 namespace {
@@ -122,29 +123,16 @@ bool HeadCalibration::MarkCommandFor(const Eigen::Vector3d& target, Eigen::Vecto
     *cmd = target;
     return true;
   }
-  // Newton on MarkSpot; its Jacobian is within a percent of the identity over the field.
+  // MarkSpot's Jacobian is within a percent of the identity over the field.
+  const auto map = [&](const Eigen::Vector2d& c) {
+    Eigen::Vector3d s;
+    if (!MarkSpot({c.x(), c.y(), target.z()}, &s)) return Eigen::Vector2d(NAN, NAN);
+    return Eigen::Vector2d(s.head<2>());
+  };
   Eigen::Vector2d c = target.head<2>();
-  constexpr double kStep = 1e-4;
-  for (int iter = 0; iter < 40; ++iter) {
-    Eigen::Vector3d s, sx, sy;
-    if (!MarkSpot({c.x(), c.y(), target.z()}, &s) ||
-        !MarkSpot({c.x() + kStep, c.y(), target.z()}, &sx) ||
-        !MarkSpot({c.x(), c.y() + kStep, target.z()}, &sy)) {
-      return false;
-    }
-    const Eigen::Vector2d r = s.head<2>() - target.head<2>();
-    if (r.norm() < 1e-7) {
-      *cmd = Eigen::Vector3d(c.x(), c.y(), target.z());
-      return true;
-    }
-    Eigen::Matrix2d j;
-    j.col(0) = (sx - s).head<2>() / kStep;
-    j.col(1) = (sy - s).head<2>() / kStep;
-    const Eigen::Vector2d d = j.fullPivLu().solve(r);
-    if (!d.allFinite()) return false;
-    c -= d;
-  }
-  return false;
+  if (!optics::InvertMap2d(map, target.head<2>(), 1e-4, 1e-7, &c)) return false;
+  *cmd = Eigen::Vector3d(c.x(), c.y(), target.z());
+  return true;
 }
 
 Status CalibrationSet::Validate() const {

@@ -14,6 +14,7 @@
 #include <ceres/ceres.h>
 
 #include "fit/ceres_support.h"
+#include "insitu/optics/newton.h"
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -181,26 +182,14 @@ Vector2d LinearDriveHead::Land(const Vector2d& command_mm) const {
 }
 
 bool LinearDriveHead::Offset(const Vector2d& p_mm, Vector2d* offset_mm) const {
-  // Newton with a forward-difference Jacobian; the head's map is smooth and close to the
-  // identity times the gains, so a few steps reach 1e-9 mm.
-  constexpr double kStep = 1e-5;
+  // The head's map is smooth and close to the identity times the gains: a few Newton steps
+  // reach 1e-9 mm.
   Vector2d c = p_mm;
-  for (int iter = 0; iter < 40; ++iter) {
-    const Vector2d s = Land(c);
-    const Vector2d r = s - p_mm;
-    if (!r.allFinite()) return false;
-    if (r.norm() < 1e-9) {
-      *offset_mm = c - p_mm;
-      return true;
-    }
-    Eigen::Matrix2d j;
-    j.col(0) = (Land(c + Vector2d(kStep, 0)) - s) / kStep;
-    j.col(1) = (Land(c + Vector2d(0, kStep)) - s) / kStep;
-    const Vector2d d = j.fullPivLu().solve(r);
-    if (!d.allFinite()) return false;
-    c -= d;
+  if (!optics::InvertMap2d([&](const Vector2d& x) { return Land(x); }, p_mm, 1e-5, 1e-9, &c)) {
+    return false;
   }
-  return false;
+  *offset_mm = c - p_mm;
+  return true;
 }
 
 Status CorPhysicsOptions::Validate() const {

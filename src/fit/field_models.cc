@@ -10,6 +10,7 @@
 #include <ceres/ceres.h>
 
 #include "fit/ceres_support.h"
+#include "insitu/optics/newton.h"
 
 namespace insitu::fit {
 namespace {
@@ -118,24 +119,11 @@ Eigen::Isometry2d RigidFit(const std::vector<Vector2d>& from, const std::vector<
 }  // namespace
 
 bool FieldModel::CommandFor(const Vector3d& target, Vector3d* cmd) const {
+  const auto map = [&](const Vector2d& c) { return Predict({c.x(), c.y(), target.z()}); };
   Vector2d c = target.head<2>();
-  constexpr double kStep = 1e-4;
-  for (int iter = 0; iter < 40; ++iter) {
-    const Vector2d p = Predict({c.x(), c.y(), target.z()});
-    const Vector2d r = p - target.head<2>();
-    if (!r.allFinite()) return false;
-    if (r.norm() < 1e-7) {
-      *cmd = Vector3d(c.x(), c.y(), target.z());
-      return true;
-    }
-    Eigen::Matrix2d j;
-    j.col(0) = (Predict({c.x() + kStep, c.y(), target.z()}) - p) / kStep;
-    j.col(1) = (Predict({c.x(), c.y() + kStep, target.z()}) - p) / kStep;
-    const Vector2d d = j.fullPivLu().solve(r);
-    if (!d.allFinite()) return false;
-    c -= d;
-  }
-  return false;
+  if (!optics::InvertMap2d(map, target.head<2>(), 1e-4, 1e-7, &c)) return false;
+  *cmd = Vector3d(c.x(), c.y(), target.z());
+  return true;
 }
 
 Result<BilinearFieldModel> BilinearFieldModel::Fit(const std::vector<GalvoSample>& nodes) {

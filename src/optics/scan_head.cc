@@ -5,6 +5,8 @@
 
 #include <Eigen/Dense>
 
+#include "insitu/optics/newton.h"
+
 namespace insitu::optics {
 namespace {
 
@@ -16,25 +18,6 @@ Status Bad(const std::string& name, const std::string& rule, T value) {
 }
 
 bool Positive(double v) { return std::isfinite(v) && v > 0.0; }
-
-// Newton on a 2D map with a forward-difference Jacobian; the map is smooth over the field.
-template <typename F>
-bool Newton2(const F& map, const Eigen::Vector2d& target, Eigen::Vector2d* x, double step,
-             double tol) {
-  for (int iter = 0; iter < 40; ++iter) {
-    const Eigen::Vector2d p = map(*x);
-    if (!p.allFinite()) return false;
-    const Eigen::Vector2d r = p - target;
-    if (r.norm() < tol) return true;
-    Eigen::Matrix2d j;
-    j.col(0) = (map(*x + Eigen::Vector2d(step, 0)) - p) / step;
-    j.col(1) = (map(*x + Eigen::Vector2d(0, step)) - p) / step;
-    const Eigen::Vector2d delta = j.fullPivLu().solve(r);
-    if (!delta.allFinite()) return false;
-    *x -= delta;
-  }
-  return false;
-}
 
 }  // namespace
 
@@ -117,7 +100,7 @@ bool ScanOptics::Solve(double x_mm, double y_mm, double z_mm, MirrorAngles* angl
     return Eigen::Vector2d(xy[0] + up[0] * z_mm / up[2], xy[1] + up[1] * z_mm / up[2]);
   };
   Eigen::Vector2d a(x_mm / g_.focal_length_mm, y_mm / g_.focal_length_mm);
-  if (!Newton2(map, Eigen::Vector2d(x_mm, y_mm), &a, 1e-7, 1e-9)) return false;
+  if (!optics::InvertMap2d(map, Eigen::Vector2d(x_mm, y_mm), 1e-7, 1e-9, &a)) return false;
   if (std::abs(a.x()) > 1.0 || std::abs(a.y()) > 1.0) return false;
   *angles = {a.x(), a.y()};
   return true;
@@ -148,18 +131,14 @@ bool HeadModel::Spot(const Eigen::Vector3d& command, const BeamPath& beam,
 bool HeadModel::CommandFor(const Eigen::Vector3d& target, const BeamPath& beam,
                            Eigen::Vector3d* command) const {
   const double z = target.z();
-  bool ok = true;
   const auto map = [&](const Eigen::Vector2d& c) {
     Eigen::Vector3d s;
-    if (!Spot(Eigen::Vector3d(c.x(), c.y(), z), beam, &s)) {
-      ok = false;
-      return Eigen::Vector2d(NAN, NAN);
-    }
+    if (!Spot(Eigen::Vector3d(c.x(), c.y(), z), beam, &s)) return Eigen::Vector2d(NAN, NAN);
     return Eigen::Vector2d(s.x(), s.y());
   };
   Eigen::Vector2d c = target.head<2>();
   // Steps of 1e-4 mm: the design inversion inside the map converges to 1e-9 mm.
-  if (!Newton2(map, target.head<2>(), &c, 1e-4, 1e-7) || !ok) return false;
+  if (!optics::InvertMap2d(map, target.head<2>(), 1e-4, 1e-7, &c)) return false;
   *command = Eigen::Vector3d(c.x(), c.y(), z);
   return true;
 }
