@@ -1,54 +1,45 @@
 #include "insitu/optics/scan_head.h"
 
 #include <cmath>
-#include <sstream>
 
 #include <Eigen/Dense>
 
+#include "insitu/core/validate.h"
 #include "insitu/optics/newton.h"
 
 namespace insitu::optics {
-namespace {
-
-template <typename T>
-Status Bad(const std::string& name, const std::string& rule, T value) {
-  std::ostringstream os;
-  os << name << " must be " << rule << ", got " << value;
-  return InvalidArgument(os.str());
-}
-
-bool Positive(double v) { return std::isfinite(v) && v > 0.0; }
-
-}  // namespace
 
 Status HeadGeometry::Validate() const {
-  if (!Positive(focal_length_mm)) return Bad("focal_length_mm", "> 0", focal_length_mm);
+  if (!IsPositiveFinite(focal_length_mm))
+    return InvalidValue("focal_length_mm", "> 0", focal_length_mm);
   if (!(mirror_separation_mm >= 0.0 && mirror_separation_mm < 200.0)) {
-    return Bad("mirror_separation_mm", "in [0, 200)", mirror_separation_mm);
+    return InvalidValue("mirror_separation_mm", "in [0, 200)", mirror_separation_mm);
   }
-  if (!Positive(exit_pupil_height_mm)) {
-    return Bad("exit_pupil_height_mm", "> 0", exit_pupil_height_mm);
+  if (!IsPositiveFinite(exit_pupil_height_mm)) {
+    return InvalidValue("exit_pupil_height_mm", "> 0", exit_pupil_height_mm);
   }
   if (!(std::abs(pupil_aberration) < 1.0)) {
-    return Bad("pupil_aberration", "in (-1, 1)", pupil_aberration);
+    return InvalidValue("pupil_aberration", "in (-1, 1)", pupil_aberration);
   }
   // |c3| theta^2 stays well under 1 over a 0.3 rad field: a lens, not a fisheye.
-  if (!(std::abs(ftheta_c3) <= 2.0)) return Bad("ftheta_c3", "in [-2, 2]", ftheta_c3);
-  if (!(std::abs(ftheta_c5) <= 20.0)) return Bad("ftheta_c5", "in [-20, 20]", ftheta_c5);
+  if (!(std::abs(ftheta_c3) <= 2.0)) return InvalidValue("ftheta_c3", "in [-2, 2]", ftheta_c3);
+  if (!(std::abs(ftheta_c5) <= 20.0)) return InvalidValue("ftheta_c5", "in [-20, 20]", ftheta_c5);
   if (!(std::abs(x_axis_tilt_mrad) <= 50.0)) {
-    return Bad("x_axis_tilt_mrad", "in [-50, 50]", x_axis_tilt_mrad);
+    return InvalidValue("x_axis_tilt_mrad", "in [-50, 50]", x_axis_tilt_mrad);
   }
   if (!(std::abs(y_axis_tilt_mrad) <= 50.0)) {
-    return Bad("y_axis_tilt_mrad", "in [-50, 50]", y_axis_tilt_mrad);
+    return InvalidValue("y_axis_tilt_mrad", "in [-50, 50]", y_axis_tilt_mrad);
   }
   return Status::Ok();
 }
 
 Status BeamPath::Validate() const {
-  if (!(std::abs(offset_x_mrad) <= 50.0)) return Bad("offset_x_mrad", "in [-50, 50]", offset_x_mrad);
-  if (!(std::abs(offset_y_mrad) <= 50.0)) return Bad("offset_y_mrad", "in [-50, 50]", offset_y_mrad);
+  if (!(std::abs(offset_x_mrad) <= 50.0))
+    return InvalidValue("offset_x_mrad", "in [-50, 50]", offset_x_mrad);
+  if (!(std::abs(offset_y_mrad) <= 50.0))
+    return InvalidValue("offset_y_mrad", "in [-50, 50]", offset_y_mrad);
   if (!(std::abs(lateral_colour_pct) <= 10.0)) {
-    return Bad("lateral_colour_pct", "in [-10, 10]", lateral_colour_pct);
+    return InvalidValue("lateral_colour_pct", "in [-10, 10]", lateral_colour_pct);
   }
   return Status::Ok();
 }
@@ -57,10 +48,10 @@ Status HeadModel::Validate() const {
   INSITU_RETURN_IF_ERROR(design.Validate().Prefixed("design"));
   INSITU_RETURN_IF_ERROR(built.Validate().Prefixed("built"));
   if (!(std::abs(x_zero_offset_mrad) <= 50.0)) {
-    return Bad("x_zero_offset_mrad", "in [-50, 50]", x_zero_offset_mrad);
+    return InvalidValue("x_zero_offset_mrad", "in [-50, 50]", x_zero_offset_mrad);
   }
   if (!(std::abs(y_zero_offset_mrad) <= 50.0)) {
-    return Bad("y_zero_offset_mrad", "in [-50, 50]", y_zero_offset_mrad);
+    return InvalidValue("y_zero_offset_mrad", "in [-50, 50]", y_zero_offset_mrad);
   }
   return Status::Ok();
 }

@@ -1,31 +1,18 @@
 #include "insitu/sim/world_options.h"
 
 #include <cmath>
-#include <sstream>
 
+#include "insitu/core/validate.h"
 #include "insitu/fit/extension.h"
 
 namespace insitu::sim {
-namespace {
-
-// "name must be <rule>, got <value>": Validate() messages start with the field name so the
-// config layer can point at the line of that key.
-template <typename T>
-Status Bad(const std::string& name, const std::string& rule, T value) {
-  std::ostringstream os;
-  os << name << " must be " << rule << ", got " << value;
-  return InvalidArgument(os.str());
-}
-
-bool Positive(double v) { return std::isfinite(v) && v > 0.0; }
-
-}  // namespace
 
 Status BeamOptions::Validate() const {
-  if (!Positive(wavelength_nm)) return Bad("wavelength_nm", "> 0", wavelength_nm);
-  if (!(power_mw >= 0.0)) return Bad("power_mw", ">= 0", power_mw);
-  if (!Positive(waist_diameter_mm)) return Bad("waist_diameter_mm", "> 0", waist_diameter_mm);
-  if (!(m2 >= 1.0)) return Bad("m2", ">= 1", m2);
+  if (!IsPositiveFinite(wavelength_nm)) return InvalidValue("wavelength_nm", "> 0", wavelength_nm);
+  if (!(power_mw >= 0.0)) return InvalidValue("power_mw", ">= 0", power_mw);
+  if (!IsPositiveFinite(waist_diameter_mm))
+    return InvalidValue("waist_diameter_mm", "> 0", waist_diameter_mm);
+  if (!(m2 >= 1.0)) return InvalidValue("m2", ">= 1", m2);
   return Path().Validate();
 }
 
@@ -41,58 +28,69 @@ Status ScanHeadOptions::Validate() const {
     const auto ext = fit::ModelExtension::Make(effects);
     if (!ext.ok()) return ext.status().Prefixed("field_effects");
   }
-  if (!Positive(field_half_size_mm)) return Bad("field_half_size_mm", "> 0", field_half_size_mm);
+  if (!IsPositiveFinite(field_half_size_mm))
+    return InvalidValue("field_half_size_mm", "> 0", field_half_size_mm);
   if (!(repeatability_urad >= 0 && repeatability_urad <= 1000)) {
-    return Bad("repeatability_urad", "in [0, 1000]", repeatability_urad);
+    return InvalidValue("repeatability_urad", "in [0, 1000]", repeatability_urad);
   }
-  if (command_bits < 12 || command_bits > 24) return Bad("command_bits", "in 12..24", command_bits);
-  if (!(focus_range_mm >= 0.0)) return Bad("focus_range_mm", ">= 0", focus_range_mm);
+  if (command_bits < 12 || command_bits > 24)
+    return InvalidValue("command_bits", "in 12..24", command_bits);
+  if (!(focus_range_mm >= 0.0)) return InvalidValue("focus_range_mm", ">= 0", focus_range_mm);
   if (!(tracking_lag_ms >= 0.0 && tracking_lag_ms < 100.0)) {
-    return Bad("tracking_lag_ms", "in [0, 100)", tracking_lag_ms);
+    return InvalidValue("tracking_lag_ms", "in [0, 100)", tracking_lag_ms);
   }
-  if (!Positive(clock_us)) return Bad("clock_us", "> 0", clock_us);
-  if (!Positive(y_mirror_height_mm)) return Bad("y_mirror_height_mm", "> 0", y_mirror_height_mm);
+  if (!IsPositiveFinite(clock_us)) return InvalidValue("clock_us", "> 0", clock_us);
+  if (!IsPositiveFinite(y_mirror_height_mm))
+    return InvalidValue("y_mirror_height_mm", "> 0", y_mirror_height_mm);
   return Status::Ok();
 }
 
 Status CoaxialCameraOptions::Validate() const {
-  if (width_px < 16 || width_px > 8192) return Bad("width_px", "in [16, 8192]", width_px);
-  if (height_px < 16 || height_px > 8192) return Bad("height_px", "in [16, 8192]", height_px);
+  if (width_px < 16 || width_px > 8192) return InvalidValue("width_px", "in [16, 8192]", width_px);
+  if (height_px < 16 || height_px > 8192)
+    return InvalidValue("height_px", "in [16, 8192]", height_px);
   if (!(pixel_on_part_um > 0.1 && pixel_on_part_um < 1000)) {
-    return Bad("pixel_on_part_um", "in (0.1, 1000)", pixel_on_part_um);
+    return InvalidValue("pixel_on_part_um", "in (0.1, 1000)", pixel_on_part_um);
   }
   if (!(numerical_aperture > 0 && numerical_aperture < 1)) {
-    return Bad("numerical_aperture", "in (0, 1)", numerical_aperture);
+    return InvalidValue("numerical_aperture", "in (0, 1)", numerical_aperture);
   }
-  if (!(psf_sigma_um >= 0)) return Bad("psf_sigma_um", ">= 0", psf_sigma_um);
-  if (!(illumination_e_per_ms >= 0)) return Bad("illumination_e_per_ms", ">= 0", illumination_e_per_ms);
-  if (!Positive(full_well_e)) return Bad("full_well_e", "> 0", full_well_e);
-  if (!(read_noise_e >= 0)) return Bad("read_noise_e", ">= 0", read_noise_e);
-  if (!Positive(exposure_ms)) return Bad("exposure_ms", "> 0", exposure_ms);
+  if (!(psf_sigma_um >= 0)) return InvalidValue("psf_sigma_um", ">= 0", psf_sigma_um);
+  if (!(illumination_e_per_ms >= 0))
+    return InvalidValue("illumination_e_per_ms", ">= 0", illumination_e_per_ms);
+  if (!IsPositiveFinite(full_well_e)) return InvalidValue("full_well_e", "> 0", full_well_e);
+  if (!(read_noise_e >= 0)) return InvalidValue("read_noise_e", ">= 0", read_noise_e);
+  if (!IsPositiveFinite(exposure_ms)) return InvalidValue("exposure_ms", "> 0", exposure_ms);
   return Status::Ok();
 }
 
 Status CameraOptions::Validate() const {
-  if (width_px < 16 || width_px > 16384) return Bad("width_px", "in [16, 16384]", width_px);
-  if (height_px < 16 || height_px > 16384) return Bad("height_px", "in [16, 16384]", height_px);
-  if (!Positive(pixel_pitch_um)) return Bad("pixel_pitch_um", "> 0", pixel_pitch_um);
-  if (!Positive(lens_focal_length_mm)) {
-    return Bad("lens_focal_length_mm", "> 0", lens_focal_length_mm);
+  if (width_px < 16 || width_px > 16384)
+    return InvalidValue("width_px", "in [16, 16384]", width_px);
+  if (height_px < 16 || height_px > 16384)
+    return InvalidValue("height_px", "in [16, 16384]", height_px);
+  if (!IsPositiveFinite(pixel_pitch_um))
+    return InvalidValue("pixel_pitch_um", "> 0", pixel_pitch_um);
+  if (!IsPositiveFinite(lens_focal_length_mm)) {
+    return InvalidValue("lens_focal_length_mm", "> 0", lens_focal_length_mm);
   }
   for (double k : {k1, k2, p1, p2, k3}) {
-    if (!std::isfinite(k) || std::abs(k) > 10.0) return Bad("k1", "distortion in [-10, 10]", k);
+    if (!std::isfinite(k) || std::abs(k) > 10.0)
+      return InvalidValue("k1", "distortion in [-10, 10]", k);
   }
-  if (!(f_number >= 0.7 && f_number <= 64)) return Bad("f_number", "in [0.7, 64]", f_number);
+  if (!(f_number >= 0.7 && f_number <= 64))
+    return InvalidValue("f_number", "in [0.7, 64]", f_number);
   if (!(quantum_efficiency > 0 && quantum_efficiency <= 1)) {
-    return Bad("quantum_efficiency", "in (0, 1]", quantum_efficiency);
+    return InvalidValue("quantum_efficiency", "in (0, 1]", quantum_efficiency);
   }
-  if (!Positive(full_well_e)) return Bad("full_well_e", "> 0", full_well_e);
-  if (!(read_noise_e >= 0)) return Bad("read_noise_e", ">= 0", read_noise_e);
-  if (!(dark_current_e_per_s >= 0)) return Bad("dark_current_e_per_s", ">= 0", dark_current_e_per_s);
-  if (!(gain_db >= 0 && gain_db <= 24)) return Bad("gain_db", "in [0, 24]", gain_db);
-  if (bit_depth != 8 && bit_depth != 12) return Bad("bit_depth", "8 or 12", bit_depth);
+  if (!IsPositiveFinite(full_well_e)) return InvalidValue("full_well_e", "> 0", full_well_e);
+  if (!(read_noise_e >= 0)) return InvalidValue("read_noise_e", ">= 0", read_noise_e);
+  if (!(dark_current_e_per_s >= 0))
+    return InvalidValue("dark_current_e_per_s", ">= 0", dark_current_e_per_s);
+  if (!(gain_db >= 0 && gain_db <= 24)) return InvalidValue("gain_db", "in [0, 24]", gain_db);
+  if (bit_depth != 8 && bit_depth != 12) return InvalidValue("bit_depth", "8 or 12", bit_depth);
   if (!(exposure_ms > 0 && exposure_ms <= 10000)) {
-    return Bad("exposure_ms", "in (0, 10000]", exposure_ms);
+    return InvalidValue("exposure_ms", "in (0, 10000]", exposure_ms);
   }
   const double dx = look_at_mm[0] - position_mm[0], dy = look_at_mm[1] - position_mm[1],
                dz = look_at_mm[2] - position_mm[2];
@@ -103,12 +101,13 @@ Status CameraOptions::Validate() const {
 }
 
 Status LightOptions::Validate() const {
-  if (!(ambient_lux >= 0 && ambient_lux < 2e5)) return Bad("ambient_lux", "in [0, 2e5)", ambient_lux);
+  if (!(ambient_lux >= 0 && ambient_lux < 2e5))
+    return InvalidValue("ambient_lux", "in [0, 2e5)", ambient_lux);
   if (!(speckle_contrast >= 0 && speckle_contrast <= 1)) {
-    return Bad("speckle_contrast", "in [0, 1]", speckle_contrast);
+    return InvalidValue("speckle_contrast", "in [0, 1]", speckle_contrast);
   }
   if (!(speckle_grain_px >= 0 && speckle_grain_px < 100)) {
-    return Bad("speckle_grain_px", "in [0, 100)", speckle_grain_px);
+    return InvalidValue("speckle_grain_px", "in [0, 100)", speckle_grain_px);
   }
   return Status::Ok();
 }
@@ -119,74 +118,87 @@ Status PartOptions::Validate() const {
     return InvalidArgument(
         "kind must be one of none, plane, step_gauge, arc, insert, grid_plate, got " + kind);
   }
-  if (!(albedo >= 0 && albedo <= 1)) return Bad("albedo", "in [0, 1]", albedo);
-  if (!(ablation_depth_um >= 0)) return Bad("ablation_depth_um", ">= 0", ablation_depth_um);
+  if (!(albedo >= 0 && albedo <= 1)) return InvalidValue("albedo", "in [0, 1]", albedo);
+  if (!(ablation_depth_um >= 0))
+    return InvalidValue("ablation_depth_um", ">= 0", ablation_depth_um);
   if (!(marked_reflectance >= 0 && marked_reflectance <= 1)) {
-    return Bad("marked_reflectance", "in [0, 1]", marked_reflectance);
+    return InvalidValue("marked_reflectance", "in [0, 1]", marked_reflectance);
   }
-  if (!Positive(darkening_depth_um)) return Bad("darkening_depth_um", "> 0", darkening_depth_um);
-  if (!Positive(plane_thickness_mm)) return Bad("plane_thickness_mm", "> 0", plane_thickness_mm);
-  if (!Positive(gauge_length_mm)) return Bad("gauge_length_mm", "> 0", gauge_length_mm);
-  if (!Positive(gauge_step_width_mm)) return Bad("gauge_step_width_mm", "> 0", gauge_step_width_mm);
+  if (!IsPositiveFinite(darkening_depth_um))
+    return InvalidValue("darkening_depth_um", "> 0", darkening_depth_um);
+  if (!IsPositiveFinite(plane_thickness_mm))
+    return InvalidValue("plane_thickness_mm", "> 0", plane_thickness_mm);
+  if (!IsPositiveFinite(gauge_length_mm))
+    return InvalidValue("gauge_length_mm", "> 0", gauge_length_mm);
+  if (!IsPositiveFinite(gauge_step_width_mm))
+    return InvalidValue("gauge_step_width_mm", "> 0", gauge_step_width_mm);
   if (gauge_heights_mm.empty()) return InvalidArgument("gauge_heights_mm must not be empty");
   for (double hgt : gauge_heights_mm) {
-    if (!Positive(hgt)) return Bad("gauge_heights_mm", "all > 0", hgt);
+    if (!IsPositiveFinite(hgt)) return InvalidValue("gauge_heights_mm", "all > 0", hgt);
   }
   if (!(arc_edge_height_mm > 0 && arc_height_mm > arc_edge_height_mm)) {
-    return Bad("arc_height_mm", "> arc_edge_height_mm > 0", arc_height_mm);
+    return InvalidValue("arc_height_mm", "> arc_edge_height_mm > 0", arc_height_mm);
   }
-  if (!Positive(insert_edge_mm)) return Bad("insert_edge_mm", "> 0", insert_edge_mm);
+  if (!IsPositiveFinite(insert_edge_mm))
+    return InvalidValue("insert_edge_mm", "> 0", insert_edge_mm);
   if (!(insert_hole_diameter_mm >= 0 && insert_hole_diameter_mm < insert_edge_mm / 2)) {
-    return Bad("insert_hole_diameter_mm", "in [0, edge/2)", insert_hole_diameter_mm);
+    return InvalidValue("insert_hole_diameter_mm", "in [0, edge/2)", insert_hole_diameter_mm);
   }
-  if (!Positive(grid_plate_pitch_mm)) return Bad("grid_plate_pitch_mm", "> 0", grid_plate_pitch_mm);
-  if (!Positive(grid_plate_line_um)) return Bad("grid_plate_line_um", "> 0", grid_plate_line_um);
+  if (!IsPositiveFinite(grid_plate_pitch_mm))
+    return InvalidValue("grid_plate_pitch_mm", "> 0", grid_plate_pitch_mm);
+  if (!IsPositiveFinite(grid_plate_line_um))
+    return InvalidValue("grid_plate_line_um", "> 0", grid_plate_line_um);
   // Crosses stand apart (a bar as long as the pitch would make a ruled grid) and are more
   // than a blob of line.
   if (!(grid_plate_cross_mm > 2e-3 * grid_plate_line_um &&
         grid_plate_cross_mm < grid_plate_pitch_mm)) {
-    return Bad("grid_plate_cross_mm", "in (2 line widths, grid_plate_pitch_mm)",
-               grid_plate_cross_mm);
+    return InvalidValue("grid_plate_cross_mm", "in (2 line widths, grid_plate_pitch_mm)",
+                        grid_plate_cross_mm);
   }
   if (!(grid_plate_size_mm >= grid_plate_cross_mm && grid_plate_size_mm <= 1000)) {
-    return Bad("grid_plate_size_mm", "in [grid_plate_cross_mm, 1000]", grid_plate_size_mm);
+    return InvalidValue("grid_plate_size_mm", "in [grid_plate_cross_mm, 1000]", grid_plate_size_mm);
   }
-  if (!Positive(grid_plate_thickness_mm)) {
-    return Bad("grid_plate_thickness_mm", "> 0", grid_plate_thickness_mm);
+  if (!IsPositiveFinite(grid_plate_thickness_mm)) {
+    return InvalidValue("grid_plate_thickness_mm", "> 0", grid_plate_thickness_mm);
   }
   if (!(grid_plate_chrome_albedo >= 0 && grid_plate_chrome_albedo <= 1)) {
-    return Bad("grid_plate_chrome_albedo", "in [0, 1]", grid_plate_chrome_albedo);
+    return InvalidValue("grid_plate_chrome_albedo", "in [0, 1]", grid_plate_chrome_albedo);
   }
   if (!(grid_plate_glass_albedo >= 0 && grid_plate_glass_albedo <= 1)) {
-    return Bad("grid_plate_glass_albedo", "in [0, 1]", grid_plate_glass_albedo);
+    return InvalidValue("grid_plate_glass_albedo", "in [0, 1]", grid_plate_glass_albedo);
   }
   return Status::Ok();
 }
 
 Status StageOptions::Validate() const {
-  if (!(min_z_mm < max_z_mm)) return Bad("min_z_mm", "< max_z_mm", min_z_mm);
-  if (!(z_mm >= min_z_mm && z_mm <= max_z_mm)) return Bad("z_mm", "within the travel", z_mm);
-  if (!Positive(speed_mm_per_s)) return Bad("speed_mm_per_s", "> 0", speed_mm_per_s);
-  if (!(plate_albedo >= 0 && plate_albedo <= 1)) return Bad("plate_albedo", "in [0, 1]", plate_albedo);
+  if (!(min_z_mm < max_z_mm)) return InvalidValue("min_z_mm", "< max_z_mm", min_z_mm);
+  if (!(z_mm >= min_z_mm && z_mm <= max_z_mm))
+    return InvalidValue("z_mm", "within the travel", z_mm);
+  if (!IsPositiveFinite(speed_mm_per_s))
+    return InvalidValue("speed_mm_per_s", "> 0", speed_mm_per_s);
+  if (!(plate_albedo >= 0 && plate_albedo <= 1))
+    return InvalidValue("plate_albedo", "in [0, 1]", plate_albedo);
   if (!(plate_marked_reflectance >= 0 && plate_marked_reflectance * plate_albedo <= 1)) {
-    return Bad("plate_marked_reflectance", "in [0, 1 / plate_albedo]", plate_marked_reflectance);
+    return InvalidValue("plate_marked_reflectance", "in [0, 1 / plate_albedo]",
+                        plate_marked_reflectance);
   }
   return Status::Ok();
 }
 
 Status BoardOptions::Validate() const {
-  if (inner_cols < 3 || inner_rows < 3) return Bad("inner_cols", ">= 3 (and inner_rows)", inner_cols);
-  if (!Positive(square_mm)) return Bad("square_mm", "> 0", square_mm);
-  if (!(margin_mm >= 0)) return Bad("margin_mm", ">= 0", margin_mm);
+  if (inner_cols < 3 || inner_rows < 3)
+    return InvalidValue("inner_cols", ">= 3 (and inner_rows)", inner_cols);
+  if (!IsPositiveFinite(square_mm)) return InvalidValue("square_mm", "> 0", square_mm);
+  if (!(margin_mm >= 0)) return InvalidValue("margin_mm", ">= 0", margin_mm);
   if (!(albedo_dark >= 0 && albedo_light <= 1 && albedo_dark < albedo_light)) {
-    return Bad("albedo_dark", "in [0, albedo_light)", albedo_dark);
+    return InvalidValue("albedo_dark", "in [0, albedo_light)", albedo_dark);
   }
   if (poses.empty()) return InvalidArgument("poses must list at least one pose");
   for (double v : plate_pose) {
     if (!std::isfinite(v)) return InvalidArgument("plate_pose must be finite numbers");
   }
   if (!(plate_pose[2] >= 0 && plate_pose[2] < 50)) {
-    return Bad("plate_pose", "a height above the plate in [0, 50) mm", plate_pose[2]);
+    return InvalidValue("plate_pose", "a height above the plate in [0, 50) mm", plate_pose[2]);
   }
   for (const auto& p : poses) {
     for (double v : p) {
@@ -205,20 +217,22 @@ Status WorldOptions::Validate() const {
   INSITU_RETURN_IF_ERROR(board.Validate().Prefixed("board"));
   INSITU_RETURN_IF_ERROR(faults.Validate().Prefixed("faults"));
   if (!(real_time_factor == 0 || (real_time_factor >= 1e-3 && real_time_factor <= 1000))) {
-    return Bad("real_time_factor", "0 (as fast as possible) or in [0.001, 1000]",
-               real_time_factor);
+    return InvalidValue("real_time_factor", "0 (as fast as possible) or in [0.001, 1000]",
+                        real_time_factor);
   }
   return Status::Ok();
 }
 
 Status FaultOptions::Validate() const {
-  if (camera_timeout_at_frame < -1) return Bad("camera_timeout_at_frame", ">= -1", camera_timeout_at_frame);
-  if (camera_drop_frame_at < -1) return Bad("camera_drop_frame_at", ">= -1", camera_drop_frame_at);
+  if (camera_timeout_at_frame < -1)
+    return InvalidValue("camera_timeout_at_frame", ">= -1", camera_timeout_at_frame);
+  if (camera_drop_frame_at < -1)
+    return InvalidValue("camera_drop_frame_at", ">= -1", camera_drop_frame_at);
   if (camera_corrupt_frame_at < -1) {
-    return Bad("camera_corrupt_frame_at", ">= -1", camera_corrupt_frame_at);
+    return InvalidValue("camera_corrupt_frame_at", ">= -1", camera_corrupt_frame_at);
   }
   if (scanner_error_at_command < -1) {
-    return Bad("scanner_error_at_command", ">= -1", scanner_error_at_command);
+    return InvalidValue("scanner_error_at_command", ">= -1", scanner_error_at_command);
   }
   return Status::Ok();
 }
