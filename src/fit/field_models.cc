@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include <Eigen/Dense>
+#include <Eigen/Geometry>
 #include <ceres/ceres.h>
 
 #include "fit/ceres_support.h"
@@ -93,26 +94,18 @@ struct TargetCost {
   Vector2d meas_;
 };
 
-// Rotation and translation taking `from` onto `to` in the least-squares sense (2D Procrustes,
-// no scale).
+// Rotation and translation taking `from` onto `to` in the least-squares sense (Umeyama, no
+// scale). Dynamic matrices: GCC 12 warns falsely on Eigen's fixed 2 x N path.
 Eigen::Isometry2d RigidFit(const std::vector<Vector2d>& from, const std::vector<Vector2d>& to) {
-  Vector2d cf = Vector2d::Zero(), ct = Vector2d::Zero();
+  Eigen::MatrixXd a(2, from.size()), b(2, to.size());
   for (size_t i = 0; i < from.size(); ++i) {
-    cf += from[i];
-    ct += to[i];
+    a.col(static_cast<Eigen::Index>(i)) = from[i];
+    b.col(static_cast<Eigen::Index>(i)) = to[i];
   }
-  cf /= static_cast<double>(from.size());
-  ct /= static_cast<double>(to.size());
-  double sxx = 0, sxy = 0;
-  for (size_t i = 0; i < from.size(); ++i) {
-    const Vector2d a = from[i] - cf, b = to[i] - ct;
-    sxx += a.dot(b);
-    sxy += a.x() * b.y() - a.y() * b.x();
-  }
-  const double phi = std::atan2(sxy, sxx);
+  const Eigen::MatrixXd m = Eigen::umeyama(a, b, false);
   Eigen::Isometry2d t = Eigen::Isometry2d::Identity();
-  t.linear() = Eigen::Rotation2Dd(phi).toRotationMatrix();
-  t.translation() = ct - t.linear() * cf;
+  t.linear() = m.topLeftCorner(2, 2);
+  t.translation() = m.topRightCorner(2, 1);
   return t;
 }
 
