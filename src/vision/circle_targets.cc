@@ -35,6 +35,8 @@
 namespace insitu::vision {
 namespace {
 
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();  // an empty sample's median
+
 std::string Format(const char* fmt, double a, double b = 0.0, double c = 0.0) {
   char buf[200];
   std::snprintf(buf, sizeof buf, fmt, a, b, c);
@@ -42,12 +44,6 @@ std::string Format(const char* fmt, double a, double b = 0.0, double c = 0.0) {
 }
 
 
-double Median(std::vector<float>* v) {
-  if (v->empty()) return std::numeric_limits<double>::quiet_NaN();
-  const size_t mid = v->size() / 2;
-  std::nth_element(v->begin(), v->begin() + mid, v->end());
-  return (*v)[mid];
-}
 
 // Bilinear sample of a CV_32F image; the caller keeps (x, y) at least one pixel inside.
 float Bilinear(const cv::Mat& m, double x, double y) {
@@ -228,14 +224,8 @@ Result<std::vector<CircleTarget>> FindCircleTargets(const ImageView& image,
     const cv::Mat lift = smooth - background;
 
     // Noise of the difference, robustly (median and MAD of a sparse sample).
-    std::vector<float> sample;
-    for (int v = 0; v < lift.rows; v += 4) {
-      const float* row = lift.ptr<float>(v);
-      for (int u = 0; u < lift.cols; u += 4) sample.push_back(row[u]);
-    }
-    const double lift_median = Median(&sample);
-    for (float& s : sample) s = static_cast<float>(std::abs(s - lift_median));
-    const double sigma = 1.4826 * Median(&sample);
+    double lift_median, sigma;
+    RobustLevel(lift, 4, &lift_median, &sigma);
     const double min_contrast = o.min_contrast_fraction * image.max_value();
     const double cut = lift_median + std::max(0.5 * min_contrast, 5.0 * sigma);
     cv::Mat mask = lift > cut;
@@ -299,7 +289,7 @@ Result<std::vector<CircleTarget>> FindCircleTargets(const ImageView& image,
         reject(c0, d_eq, "too little plate around it to measure the background");
         continue;
       }
-      const double bg = Median(&ring), plateau = Median(&inner);
+      const double bg = Median(&ring, kNaN), plateau = Median(&inner, kNaN);
       if (plateau - bg < min_contrast) {
         reject(c0, d_eq,
                Format("contrast %.1f gray levels below the least asked for, %.1f", plateau - bg,
@@ -424,7 +414,7 @@ Result<std::vector<CircleTarget>> FindCircleTargets(const ImageView& image,
         dist.push_back(static_cast<float>(std::abs(conic->Distance(p))));
       }
       std::vector<float> sorted = dist;
-      const double limit = std::max(0.3, 4.0 * 1.4826 * Median(&sorted));
+      const double limit = std::max(0.3, 4.0 * 1.4826 * Median(&sorted, kNaN));
       std::vector<Eigen::Vector2d> kept;
       for (size_t i = 0; i < dist.size(); ++i) {
         if (dist[i] <= limit) kept.push_back(t.edge_px[i]);

@@ -47,13 +47,6 @@ std::string Format(const char* fmt, double a, double b = 0.0) {
 }
 
 
-// Median of a sample (reorders it); 0 when empty.
-double Median(std::vector<float>* v) {
-  if (v->empty()) return 0.0;
-  auto mid = v->begin() + static_cast<std::ptrdiff_t>(v->size() / 2);
-  std::nth_element(v->begin(), mid, v->end());
-  return *mid;
-}
 
 // One bar's line in its own axes: b = b0 + m (a - a_ref), with (a, b) = (u, v) for a bar
 // nearer to u, (v, u) for the other.
@@ -127,7 +120,7 @@ bool MeasureBar(const cv::Mat& raw, double background, const Eigen::Vector2d& ce
     for (const Sample& s : samples) {
       residuals.push_back(static_cast<float>(std::abs(s.b - line->b0 - line->m * (s.a - ca))));
     }
-    const double limit = iteration == 0 ? 1e9 : std::max(0.3, 4.0 * 1.4826 * Median(&residuals));
+    const double limit = iteration == 0 ? 1e9 : std::max(0.3, 4.0 * 1.4826 * Median(&residuals, 0.0));
     double s0 = 0, s1 = 0, s2 = 0, sb = 0, sab = 0;
     for (const Sample& s : samples) {
       if (iteration > 0 && std::abs(s.b - line->b0 - line->m * (s.a - ca)) > limit) continue;
@@ -158,7 +151,7 @@ bool MeasureBar(const cv::Mat& raw, double background, const Eigen::Vector2d& ce
         ++line->samples;
         peaks.push_back(static_cast<float>(s.peak));
       }
-      line->peak = Median(&peaks);
+      line->peak = Median(&peaks, 0.0);
       return line->samples >= 6;
     }
   }
@@ -204,14 +197,9 @@ Result<std::vector<Cross>> FindCrosses(const ImageView& image, const CrossOption
                      1, cv::BORDER_REPLICATE);
     cv::blur(opened, opened, cv::Size(k, k), cv::Point(-1, -1), cv::BORDER_REPLICATE);
     const cv::Mat lift = smooth - opened;
-    std::vector<float> sample;
     const int step = std::max(1, static_cast<int>(std::sqrt(lift.total() / 20000.0)));
-    for (int v = 0; v < lift.rows; v += step) {
-      for (int u = 0; u < lift.cols; u += step) sample.push_back(lift.at<float>(v, u));
-    }
-    const double median = Median(&sample);
-    for (float& s : sample) s = static_cast<float>(std::abs(s - median));
-    const double sigma = 1.4826 * Median(&sample);
+    double median, sigma;
+    RobustLevel(lift, step, &median, &sigma);
     const double min_peak = o.min_contrast_fraction * image.max_value();
     const double threshold = median + std::max(5.0 * sigma, 0.5 * min_peak);
     cv::Mat mask = lift > threshold;
@@ -283,7 +271,7 @@ Result<std::vector<Cross>> FindCrosses(const ImageView& image, const CrossOption
           if (m[u] == 0) around.push_back(r[u]);
         }
       }
-      const double background = Median(&around);
+      const double background = Median(&around, 0.0);
 
       // Two rounds: the lines through the blob's centroid, then through their crossing.
       const double clear = 0.5 * o.max_line_width_px + half_window + 1.0;

@@ -2,7 +2,12 @@
 // ImageView before it is touched, and its samples as a float matrix.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <limits>
 #include <string>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -36,6 +41,28 @@ inline cv::Mat ToFloatMat(const ImageView& image) {
   cv::Mat out;
   src.convertTo(out, CV_32F);
   return out;
+}
+
+// Median of a sample (reorders it); `if_empty` for an empty one.
+inline double Median(std::vector<float>* v, double if_empty) {
+  if (v->empty()) return if_empty;
+  const auto mid = v->begin() + static_cast<std::ptrdiff_t>(v->size() / 2);
+  std::nth_element(v->begin(), mid, v->end());
+  return *mid;
+}
+
+// The level and noise of a background-subtracted CV_32F image, robustly: median and
+// 1.4826 x median absolute deviation of the samples every `step` pixels in both directions
+// (the targets on it are few and sparse, so they move neither).
+inline void RobustLevel(const cv::Mat& image, int step, double* median, double* sigma) {
+  std::vector<float> sample;
+  for (int v = 0; v < image.rows; v += step) {
+    const float* row = image.ptr<float>(v);
+    for (int u = 0; u < image.cols; u += step) sample.push_back(row[u]);
+  }
+  *median = Median(&sample, std::numeric_limits<double>::quiet_NaN());
+  for (float& s : sample) s = static_cast<float>(std::abs(s - *median));
+  *sigma = 1.4826 * Median(&sample, std::numeric_limits<double>::quiet_NaN());
 }
 
 }  // namespace insitu::vision
