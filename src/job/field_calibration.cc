@@ -619,8 +619,9 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
   // Seed 003's table: each model's error at the check points (prediction of where the
   // command lands; correcting with it leaves this to first order).
   const auto model_metric = [&](const std::string& key, const fit::FieldModel& m) {
-    report.metrics["model_" + key + "_rms_um"] = fit::PredictionError(m, judge).rms_mm * 1e3;
-    report.metrics["model_" + key + "_max_um"] = fit::PredictionError(m, judge).max_mm * 1e3;
+    const fit::ModelError e = fit::PredictionError(m, judge);
+    report.metrics["model_" + key + "_rms_um"] = e.rms_mm * 1e3;
+    report.metrics["model_" + key + "_max_um"] = e.max_mm * 1e3;
   };
   model_metric("physics", *physics);
   for (int sub = 3; sub <= spec.n; ++sub) {
