@@ -31,6 +31,9 @@
 #include <optional>
 #include <sstream>
 
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
 #include "insitu/calib/calibration.h"
 #include "insitu/calib/camera_calibration.h"
 #include "insitu/core/file.h"
@@ -41,6 +44,7 @@
 #include "insitu/pattern/correction_table.h"
 #include "insitu/pattern/spiral_target.h"
 #include "insitu/vision/circle_targets.h"
+#include "insitu/vision/crosses.h"
 #include "insitu/vision/targets.h"
 #include "job/coaxial_field.h"
 #include "job/progress.h"
@@ -57,14 +61,19 @@ struct FieldSpec {
   int n = 11;                    // grid nodes per side
   double half_size_mm = 60.0;    // grid from -half to +half in x and y
   bool check_points = true;      // the cell centres, measured but never fitted
-  // spiral: discs marked by the marking laser (seed 003); pointer: the non-destructive variant,
-  // the pointer's spot parked on a matte card (measures the pointer's field, not the laser's).
+  // spiral: discs marked by the marking laser (seed 003); cross: seed 001's marked "+";
+  // pointer: the non-destructive variant, the pointer's spot parked on a matte card (measures
+  // the pointer's field, not the laser's).
   std::string target_kind = "spiral";
   // side: the side camera measures targets over the whole field; coaxial: the coaxial camera
   // measures the head's aim on a reticle over a small field (seed 001).
   std::string route = "side";
   CoaxialFieldOptions coaxial;
   pattern::SpiralTargetOptions spiral;
+  // Seen by the side camera at ~0.09 mm per pixel: bars 5 px wide and 55 px long, so each
+  // bar's centre line rests on ~50 cross-sections (seed 001's 0.1 mm bars suit its coaxial
+  // camera at a few micrometres per pixel).
+  pattern::CrossTargetOptions cross{5.0, 0.4, 0.035};
   double mark_speed_mm_per_s = 1000.0;
   double jump_speed_mm_per_s = 5000.0;
   double laser_power = 0.5;
@@ -116,11 +125,15 @@ Status ReadSpec(const LoadedJob& job, FieldSpec* s, hw::MachineConfig* machine) 
   if (g.ok() && (s->n < 5 || s->n > 65)) g.Fail("n", "must be in 5..65");
   if (g.ok() && !(s->half_size_mm > 0)) g.Fail("half_size_mm", "must be > 0");
   ConfigReader& t = r.Section("target");
-  t.ReadEnum("kind", &s->target_kind, {"spiral", "pointer"});
+  t.ReadEnum("kind", &s->target_kind, {"spiral", "cross", "pointer"});
   t.Read("diameter_mm", &s->spiral.diameter_mm);
   t.Read("pitch_mm", &s->spiral.pitch_mm);
+  t.Read("length_mm", &s->cross.length_mm);
+  t.Read("bar_width_mm", &s->cross.bar_width_mm);
   t.Read("exposure_ms", &s->target_exposure_ms);
+  s->cross.line_width_mm = s->spiral.pitch_mm;  // one marked line width for both targets
   if (t.ok()) t.FailFromValidate(s->spiral.Validate());
+  if (t.ok() && s->target_kind == "cross") t.FailFromValidate(s->cross.Validate());
   if (t.ok() && !(s->target_exposure_ms > 0)) t.Fail("exposure_ms", "must be > 0");
   ConfigReader& m = r.Section("marking");
   m.Read("mark_speed_mm_per_s", &s->mark_speed_mm_per_s);
@@ -209,11 +222,29 @@ std::vector<Target> Layout(const FieldSpec& s) {
   return t;
 }
 
-// The list that marks every target: each disc's spiral through the local linear map of the
-// correction at its centre (the correction varies by < 1e-2 over a disc, so its centre lands
-// where the correction sends it and the disc keeps its shape to a few micrometres).
+// A target's shape: strokes in target coordinates (mm), each a polyline the laser marks from
+// a jump to its first point.
+using Strokes = std::vector<std::vector<Vector2d>>;
+Result<Strokes> TargetStrokes(const FieldSpec& s) {
+  if (s.target_kind == "cross") {
+    INSITU_ASSIGN_OR_RETURN(std::vector<pattern::Segment2> bars, pattern::CrossTargetStrokes(s.cross));
+    Strokes out;
+    for (const pattern::Segment2& b : bars) out.push_back({b.a, b.b});
+    return out;
+  }
+  INSITU_ASSIGN_OR_RETURN(std::vector<Vector2d> spiral, pattern::SpiralTargetPath(s.spiral));
+  return Strokes{std::move(spiral)};
+}
+// How far a target reaches from its centre, mm.
+double TargetRadius(const FieldSpec& s) {
+  return s.target_kind == "cross" ? 0.5 * s.cross.length_mm : 0.5 * s.spiral.diameter_mm;
+}
+
+// The list that marks every target: each target's strokes through the local linear map of the
+// correction at its centre (the correction varies by < 1e-2 over a target, so its centre lands
+// where the correction sends it and the target keeps its shape to a few micrometres).
 using CommandMap = std::function<bool(const Vector3d&, Vector3d*)>;
-Result<hw::GalvoList> TargetList(const FieldSpec& s, const std::vector<Eigen::Vector2d>& spiral,
+Result<hw::GalvoList> TargetList(const FieldSpec& s, const Strokes& shape,
                                  std::vector<Target>* targets, const CommandMap& command_for) {
   hw::GalvoList list;
   list.mark_speed_mm_per_s = s.mark_speed_mm_per_s;
@@ -233,13 +264,23 @@ Result<hw::GalvoList> TargetList(const FieldSpec& s, const std::vector<Eigen::Ve
     j.col(0) = (cx - c0).head<2>() / kH;
     j.col(1) = (cy - c0).head<2>() / kH;
     t.command = c0;
-    for (size_t k = 0; k < spiral.size(); ++k) {
-      const Vector2d p = c0.head<2>() + j * spiral[k];
-      list.entries.push_back({k == 0 ? hw::GalvoListEntry::Kind::kJump : hw::GalvoListEntry::Kind::kMark,
-                              Vector3d(p.x(), p.y(), 0.0)});
+    for (const std::vector<Vector2d>& stroke : shape) {
+      for (size_t k = 0; k < stroke.size(); ++k) {
+        const Vector2d p = c0.head<2>() + j * stroke[k];
+        list.entries.push_back({k == 0 ? hw::GalvoListEntry::Kind::kJump
+                                       : hw::GalvoListEntry::Kind::kMark,
+                                Vector3d(p.x(), p.y(), 0.0)});
+      }
     }
   }
   return list;
+}
+
+// "target (x, y) mm near pixel (u, v)", for warnings.
+std::string Where(const Target& t, const Vector2d& predicted_px) {
+  return (t.check ? "check point (" : "target (") + Num(t.nominal.x(), 2) + ", " +
+         Num(t.nominal.y(), 2) + ") mm near pixel (" + Num(predicted_px.x(), 0) + ", " +
+         Num(predicted_px.y(), 0) + ")";
 }
 
 // Finds the targets in a frame and measures each centre on the plate. Each expected target
@@ -274,9 +315,7 @@ Status MeasureTargets(const Frame& frame, const calib::CameraIntrinsics& cam,
         best_d = d;
       }
     }
-    const std::string where = (t.check ? "check point (" : "target (") + Num(t.nominal.x(), 2) +
-                              ", " + Num(t.nominal.y(), 2) + ") mm near pixel (" +
-                              Num(predicted.x(), 0) + ", " + Num(predicted.y(), 0) + ")";
+    const std::string where = Where(t, predicted);
     if (best < 0) {
       std::string why;
       for (const vision::RejectedBlob& r : rejected) {
@@ -299,6 +338,81 @@ Status MeasureTargets(const Frame& frame, const calib::CameraIntrinsics& cam,
     t.plate = circle->center;
     const auto mec = calib::PixelsOnPlane({b.mec_center_px}, cam, camera_from_plate);
     if (mec[0]) t.plate_mec = *mec[0];
+    ++*found;
+  }
+  return Status::Ok();
+}
+
+// Seed 001's crosses seen by the side camera. The camera looks at the plate at ~30 degrees,
+// so a "+" on the plate is a skewed cross in the frame; each target's neighbourhood is
+// therefore resampled onto the plate plane first (the camera's ray through every sample, lens
+// distortion included, meets the plate: the homography of seed 003 with the lens model), at
+// the camera's finest native sampling there, and the cross is found in that plate-aligned
+// patch: its two bars are straight and square again, and its centre maps back to plate mm by a
+// scale. Matched as the discs are: the cross nearest the predicted position, within 40 % of
+// the grid pitch.
+Status MeasureCrossTargets(const Frame& frame, const calib::CameraIntrinsics& cam,
+                           const Eigen::Isometry3d& camera_from_plate,
+                           const Eigen::Isometry3d& camera_from_galvo_guess, double pitch_mm,
+                           const pattern::CrossTargetOptions& cross, std::vector<Target>* targets,
+                           std::vector<std::string>* warnings, int* found) {
+  const int type = frame.bit_depth == 8 ? CV_8UC1 : CV_16UC1;
+  const cv::Mat image(frame.height, frame.width, type, const_cast<uint8_t*>(frame.bytes.data()),
+                      frame.stride_bytes());
+  const Eigen::Isometry3d plate_from_galvo = camera_from_plate.inverse() * camera_from_galvo_guess;
+  const auto pixel_of = [&](const Vector2d& plate_mm) {
+    return cam.Project(camera_from_plate * Vector3d(plate_mm.x(), plate_mm.y(), 0.0));
+  };
+  *found = 0;
+  for (Target& t : *targets) {
+    t.plate.reset();
+    t.plate_mec.reset();
+    const Vector2d centre = (plate_from_galvo * Vector3d(t.nominal.x(), t.nominal.y(), 0.0)).head<2>();
+    const Vector2d predicted = pixel_of(centre);
+    const std::string where = Where(t, predicted);
+    // The finest native sampling at the target: the longer of the frame's steps for 1 mm
+    // along the plate's x and y.
+    const double px_per_mm = std::max((pixel_of(centre + Vector2d(1, 0)) - predicted).norm(),
+                                      (pixel_of(centre + Vector2d(0, 1)) - predicted).norm());
+    const double mm_per_px = 1.0 / px_per_mm;
+    const int half = static_cast<int>(std::ceil(0.5 * pitch_mm * px_per_mm));
+    const int size = 2 * half + 1;
+    cv::Mat map_u(size, size, CV_32FC1), map_v(size, size, CV_32FC1);
+    for (int r = 0; r < size; ++r) {
+      for (int c = 0; c < size; ++c) {
+        const Vector2d q = pixel_of(centre + mm_per_px * Vector2d(c - half, r - half));
+        map_u.at<float>(r, c) = static_cast<float>(q.x());
+        map_v.at<float>(r, c) = static_cast<float>(q.y());
+      }
+    }
+    cv::Mat patch;
+    cv::remap(image, patch, map_u, map_v, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0));
+    vision::CrossOptions options;
+    options.bright = true;  // marks on black anodising scatter more light than the plate
+    // A bar's image: its width plus the camera's blur (~2 px) and the resampling's pixel.
+    options.max_line_width_px = cross.bar_width_mm * px_per_mm + 4.0;
+    options.min_bar_px = 0.6 * cross.length_mm * px_per_mm;
+    options.max_bar_px = 1.5 * cross.length_mm * px_per_mm + 4.0;
+    const vision::ImageView view{patch.data, patch.cols, patch.rows, patch.step[0], frame.bit_depth};
+    auto crosses = vision::FindCrosses(view, options);
+    if (!crosses.ok()) return crosses.status();
+    const vision::Cross* best = nullptr;
+    double best_d = 0.4 * pitch_mm * px_per_mm;
+    for (const vision::Cross& x : *crosses) {
+      const double d = (x.centre_px - Vector2d(half, half)).norm();
+      if (d < best_d) {
+        best = &x;
+        best_d = d;
+      }
+    }
+    if (best == nullptr) {
+      warnings->push_back(where + " not found" +
+                          (crosses->empty() ? std::string(": no cross in its neighbourhood")
+                                            : ": " + std::to_string(crosses->size()) +
+                                                  " crosses near it, none within 40 % of the pitch"));
+      continue;
+    }
+    t.plate = centre + mm_per_px * (best->centre_px - Vector2d(half, half));
     ++*found;
   }
   return Status::Ok();
@@ -344,14 +458,14 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
   INSITU_RETURN_IF_ERROR(ReadSpec(job, &spec, &config));
   auto previous = calib::LoadCalibration(spec.machine.calibration_path);
   if (!previous.ok()) return previous.status().Prefixed(job.path + ": machine.calibration");
-  INSITU_ASSIGN_OR_RETURN(auto spiral, pattern::SpiralTargetPath(spec.spiral));
+  INSITU_ASSIGN_OR_RETURN(const Strokes shape, TargetStrokes(spec));
   INSITU_ASSIGN_OR_RETURN(hw::Machine machine, hw::CreateMachine(config));
   const hw::CameraInfo info = machine.camera->info();
   INSITU_RETURN_IF_ERROR(calib::CheckCameraMatches(previous->camera, info.model, info.serial,
                                                    info.sensor_width_px, info.sensor_height_px)
                              .Prefixed(job.path + ": machine.calibration"));
   const hw::ScannerInfo head_info = machine.scanner->info();
-  const double reach = spec.half_size_mm + 0.5 * spec.spiral.diameter_mm;
+  const double reach = spec.half_size_mm + TargetRadius(spec);
   if (head_info.field_half_size_mm > 0 && reach > head_info.field_half_size_mm) {
     return InvalidArgument(job.path + ": grid.half_size_mm: the grid with its targets reaches " +
                            Num(reach, 2) + " mm, beyond the head's field of +-" +
@@ -550,7 +664,7 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
       }
       return Status::Ok();
     }
-    auto list = TargetList(spec, spiral, &targets, command_for);
+    auto list = TargetList(spec, shape, &targets, command_for);
     if (!list.ok()) return list.status();
     hw::ListControl control;
     control.abort = options.cancel;
@@ -563,6 +677,11 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
     INSITU_RETURN_IF_ERROR(machine.camera->SetExposure(spec.target_exposure_ms * 1e3));
     auto frame = machine.camera->Grab();
     if (!frame.ok()) return frame.status();
+    if (spec.target_kind == "cross") {
+      return MeasureCrossTargets(*frame, cam, plate.camera_from_plate,
+                                 previous->galvo.camera_from_galvo, pitch, spec.cross, &targets,
+                                 &report.warnings, found);
+    }
     return MeasureTargets(*frame, cam, plate.camera_from_plate, previous->galvo.camera_from_galvo,
                           pitch, find, &targets, &report.warnings, found);
   };

@@ -161,6 +161,23 @@ TEST(FieldCalibrationJob, AsBuiltHeadIsMeasuredCorrectedAndUsed) {
   EXPECT_LT(spots->metrics["field_error_rms_um_after"],
             0.2 * spots->metrics["field_error_rms_um_before"]);
 
+  // Seed 001's crosses instead of discs, found in the frame resampled onto the plate: their
+  // centres rest on the bars' centre lines (~50 cross-sections each, 5 px wide), a little
+  // noisier than a disc's ~150 edge points, so the same bars hold (~3 um after).
+  auto crosses = testing::RunShippedJob(
+      "field_calibration.yaml",
+      With(kAsBuilt, {"machine.calibration=" + cal, "output.calibration=" + (dir / "x.yaml").string(),
+                      "target.kind=cross", "grid.n=7"}),
+      (dir / "cross").string());
+  ASSERT_TRUE(crosses.ok()) << crosses.status().ToString();
+  std::printf("cross targets: %.1f um rms before, %.2f um after (%.2f %% removed)\n",
+              crosses->metrics["field_error_rms_um_before"],
+              crosses->metrics["field_error_rms_um_after"],
+              crosses->metrics["distortion_removed_pct"]);
+  EXPECT_EQ(crosses->metrics["targets_found"], crosses->metrics["targets_expected"]);
+  EXPECT_GE(crosses->metrics["distortion_removed_pct"], 99.0);
+  EXPECT_LE(crosses->metrics["field_error_rms_um_after"], 10.0);
+
   // The rest of the machine uses what was measured: the gauge's length and heights hold.
   auto after = testing::RunShippedJob(
       "accuracy_step_gauge.yaml",
