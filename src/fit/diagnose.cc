@@ -112,6 +112,24 @@ std::string Describe(const std::string& name) {
 }
 
 // The report of an effect as it enters the model.
+// The physical head (head_geometry) and the leading-order terms it holds: offset (its zero
+// offsets), scale (its gains), skew (its axis tilts), mirror_separation (its two-mirror
+// distortion) and lens_radial (its lens). A rotation stays apart: it is as often the measuring
+// frame's as the head's.
+constexpr const char* kHeadGeometry = "head_geometry";
+bool IsHeadTerm(const std::string& name) {
+  return name == "offset" || name == "scale" || name == "skew" || name == "mirror_separation" ||
+         name == "lens_radial";
+}
+// The head is tried once a distortion term shows it: a field that is only linear is never put
+// on the head.
+bool HasLeadingHeadTerm(const std::vector<const Effect*>& effects) {
+  for (const Effect* e : effects) {
+    if (e->name() == "mirror_separation" || e->name() == "lens_radial") return true;
+  }
+  return false;
+}
+
 EffectReport Entered(const Effect& e, double delta_bic, double cv_rms_mm) {
   EffectReport rep;
   rep.name = e.name();
@@ -188,7 +206,57 @@ Result<Diagnosis> Diagnose(const FieldData& data, const DiagnoseOptions& o) {
 
   // Forward selection.
   const auto library = EffectLibrary();
+  const Effect* head = nullptr;
+  for (const auto& e : library) {
+    if (e->name() == kHeadGeometry) head = e.get();
+  }
+  bool head_tried = false;
   while (static_cast<int>(current.size()) < o.max_effects) {
+    // The physical head in place of its leading-order terms, once they have entered.
+    if (head != nullptr && !head_tried && HasLeadingHeadTerm(current)) {
+      head_tried = true;
+      std::vector<const Effect*> trial;
+      std::vector<EffectReport> reports;
+      bool placed = false;
+      for (size_t k = 0; k < current.size(); ++k) {
+        if (IsHeadTerm(current[k]->name())) {
+          if (!placed) {
+            trial.push_back(head);
+            reports.push_back({});
+            placed = true;
+          }
+          continue;
+        }
+        trial.push_back(current[k]);
+        reports.push_back(d.effects[k]);
+      }
+      auto r = FitEffects(data, trial);
+      if (!r.ok()) {
+        d.notes.push_back(std::string(kHeadGeometry) + ": " + r.status().message());
+      } else {
+        const double trial_bic = Bic(r->rss_mm2, m, r->parameters);
+        auto trial_cv = CrossValidatedRms(data, trial, fold_of, folds);
+        if (!trial_cv.ok()) {
+          d.notes.push_back(std::string(kHeadGeometry) + ": held-out fit: " +
+                            trial_cv.status().message());
+        } else if (trial_bic < bic && *trial_cv <= cv) {
+          for (size_t k = 0; k < trial.size(); ++k) {
+            if (trial[k] == head) reports[k] = Entered(*head, trial_bic - bic, *trial_cv);
+          }
+          current = trial;
+          d.effects = reports;
+          bic = trial_bic;
+          cv = *trial_cv;
+          best_fit = *r;
+          continue;
+        } else {
+          d.notes.push_back(std::string(kHeadGeometry) + " in place of its leading-order terms: "
+                            "BIC " + std::to_string(trial_bic - bic) + ", held-out " +
+                            std::to_string(*trial_cv) + " mm against " + std::to_string(cv) +
+                            " mm: kept the leading-order terms");
+        }
+      }
+    }
     // Every candidate fitted jointly with the model so far, best BIC first.
     struct Candidate {
       const Effect* effect;
@@ -197,8 +265,13 @@ Result<Diagnosis> Diagnose(const FieldData& data, const DiagnoseOptions& o) {
     };
     std::vector<Candidate> candidates;
     for (const auto& e : library) {
-      if (!e->Applicable(data)) continue;
+      if (!e->Applicable(data) || e.get() == head) continue;
       if (std::find(current.begin(), current.end(), e.get()) != current.end()) continue;
+      // The head's own terms are not added beside it: it holds them.
+      if (std::find(current.begin(), current.end(), head) != current.end() &&
+          IsHeadTerm(e->name())) {
+        continue;
+      }
       std::vector<const Effect*> trial = current;
       trial.push_back(e.get());
       const int params = best_fit.parameters + static_cast<int>(e->param_names().size());

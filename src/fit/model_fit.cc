@@ -146,68 +146,21 @@ class FieldCost : public ceres::CostFunction {
   std::vector<double> scale_;
 };
 
-// Stops a fit whose centre (a parameter named x0 or y0: a position in the commanded frame)
-// runs more than kCentreReach field half-widths from the centroid of the commanded points.
-// The data then do not pin the centre and the cost falls towards a limit at infinity: e.g.
-// mirror_separation on points along the axes only, where kappa -> 0 and x0 -> inf with
-// kappa x0 fixed reproduce the y^2 bow. Without the guard such a fit would run to
-// max_iterations (~1 ms per iteration on 1000 points) before failing.
-constexpr double kCentreReach = 10.0;
-
-class CentreGuard : public ceres::IterationCallback {
- public:
-  CentreGuard(const FieldData& data, const Chain& chain, const std::vector<double>& scale,
-              const std::vector<std::vector<double>>& z)
-      : scale_(scale), z_(z) {
-    Vector2d centroid = Vector2d::Zero();
-    for (const FieldPoint& p : data.points) centroid += p.cmd;
-    centroid /= static_cast<double>(std::max<size_t>(1, data.points.size()));
-    double half = 0.0;
-    for (const FieldPoint& p : data.points) {
-      half = std::max(half, (p.cmd - centroid).cwiseAbs().maxCoeff());
-    }
-    half_width_mm_ = half > 0.0 ? half : 1.0;
-    for (int k = 0; k < chain.size(); ++k) {
-      const std::vector<std::string> names = chain.effects[k]->param_names();
-      for (size_t jj = 0; jj < names.size(); ++jj) {
-        if (names[jj] != "x0" && names[jj] != "y0") continue;
-        centres_.push_back({k, static_cast<int>(jj), chain.begin[k] + static_cast<int>(jj),
-                            names[jj] == "x0" ? centroid.x() : centroid.y(),
-                            chain.effects[k]->name() + "." + names[jj]});
-      }
+// Each effect's physical bounds (Effect::Bounds) on its block of z (theta = scale z, scale > 0).
+void BoundParameters(const FieldData& data, const Chain& chain, const std::vector<double>& scale,
+                     std::vector<std::vector<double>>* z, ceres::Problem* problem) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < chain.size(); ++k) {
+    const int size = chain.begin[k + 1] - chain.begin[k];
+    std::vector<double> lo(size, -kInf), hi(size, kInf);
+    chain.effects[k]->Bounds(data, &lo, &hi);
+    for (int jj = 0; jj < size; ++jj) {
+      const double s = scale[chain.begin[k] + jj];
+      if (std::isfinite(lo[jj])) problem->SetParameterLowerBound((*z)[k].data(), jj, lo[jj] / s);
+      if (std::isfinite(hi[jj])) problem->SetParameterUpperBound((*z)[k].data(), jj, hi[jj] / s);
     }
   }
-  bool active() const { return !centres_.empty(); }
-  const std::string& reason() const { return reason_; }
-
-  ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
-    for (const Centre& c : centres_) {
-      const double at = scale_[c.j] * z_[c.k][c.jj];
-      if (!(std::abs(at - c.centroid) <= kCentreReach * half_width_mm_)) {
-        char text[200];
-        std::snprintf(text, sizeof text,
-                      "%s ran to %.4g mm, more than %g field half-widths (%.4g mm) from the "
-                      "centroid of the commanded points: the data do not pin it",
-                      c.label.c_str(), at, kCentreReach, half_width_mm_);
-        reason_ = text;
-        return ceres::SOLVER_ABORT;
-      }
-    }
-    return ceres::SOLVER_CONTINUE;
-  }
-
- private:
-  struct Centre {
-    int k, jj, j;
-    double centroid;
-    std::string label;
-  };
-  const std::vector<double>& scale_;
-  const std::vector<std::vector<double>>& z_;
-  std::vector<Centre> centres_;
-  double half_width_mm_ = 1.0;
-  std::string reason_;
-};
+}
 
 void Model(const FieldData& data, const Chain& chain, const std::vector<double>& theta,
            std::vector<Vector2d>* model) {
@@ -221,10 +174,17 @@ void Model(const FieldData& data, const Chain& chain, const std::vector<double>&
 // Starting values: each effect in chain order from the residual the effects before it leave.
 std::vector<double> InitialTheta(const FieldData& data, const Chain& chain) {
   std::vector<double> theta(chain.parameters(), 0.0);
-  std::vector<Vector2d> model, residual(data.points.size());
+  std::vector<Vector2d> residual(data.points.size());
   for (int k = 0; k < chain.size(); ++k) {
-    Model(data, chain, theta, &model);
-    for (size_t i = 0; i < data.points.size(); ++i) residual[i] = data.points[i].meas - model[i];
+    // The effects before k only: zero parameters need not mean "no effect" (head_geometry's
+    // focal length).
+    for (size_t i = 0; i < data.points.size(); ++i) {
+      Vector2d uv = data.points[i].cmd;
+      for (int e = 0; e < k; ++e) {
+        chain.effects[e]->Apply(data.points[i], theta.data() + chain.begin[e], &uv);
+      }
+      residual[i] = data.points[i].meas - uv;
+    }
     const std::vector<double> init = chain.effects[k]->Initial(data, residual);
     for (int j = chain.begin[k]; j < chain.begin[k + 1]; ++j) {
       const double v = init[j - chain.begin[k]];
@@ -392,18 +352,14 @@ Result<FitResult> FitEffects(const FieldData& data, const std::vector<const Effe
     so.function_tolerance = 1e-10;
     so.parameter_tolerance = 1e-10;
     so.gradient_tolerance = 1e-14;
-    CentreGuard guard(sub, chain, scale, z);
-    if (guard.active()) {
-      so.update_state_every_iteration = true;
-      so.callbacks.push_back(&guard);
-    }
+    BoundParameters(sub, chain, scale, &z, &problem);
     ceres::Solver::Summary summary;
     ceres::Solve(so, &problem, &summary);
     result.summary = summary.BriefReport();
     if (summary.termination_type != ceres::CONVERGENCE) {
       return FailedPrecondition(
           "fit of " + std::to_string(p) + " parameters to " + data.origin + " did not converge: " +
-          (guard.reason().empty() ? "" : guard.reason() + "; ") + summary.BriefReport());
+          summary.BriefReport());
     }
     for (int k = 0; k < chain.size(); ++k) {
       for (int j = chain.begin[k]; j < chain.begin[k + 1]; ++j) {

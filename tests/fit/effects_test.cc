@@ -16,8 +16,9 @@ namespace {
 using Eigen::Vector2d;
 
 const std::vector<std::string> kCanonical = {
-    "offset",      "scale",       "rotation",      "skew",         "mirror_separation",
-    "lens_radial", "perspective", "thermal_drift", "tracking_lag", "focus_scale"};
+    "offset",      "scale",         "rotation",      "skew",
+    "mirror_separation", "lens_radial", "head_geometry", "perspective",
+    "thermal_drift", "tracking_lag", "focus_scale"};
 
 std::unique_ptr<Effect> Make(const std::string& name) {
   std::unique_ptr<Effect> e = MakeEffect(name);

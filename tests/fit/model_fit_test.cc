@@ -120,6 +120,10 @@ const std::vector<Truth>& Realistic() {
       {"skew", {5e-4}},
       {"mirror_separation", {1.5e-6, 2.0, -1.0}},  // 0.19 mm at the corner
       {"lens_radial", {2e-7, 3.0, 2.0}},           // 0.07 mm at the corner
+      // The default head's lens (f 255 mm, e 16 mm) on a linear drive: 0.3 / -0.2 mrad zero
+      // errors, 1 / -0.5 mrad axis tilts, c3 0.04, c5 -0.1, gains +0.2 / -0.15 %: the two-mirror
+      // distortion moves the corner ~0.6 mm; e shows in the focus shifts (0.1 mm at z = 10).
+      {"head_geometry", {255.0, 16.0, 0.3, -0.2, 1.0, -0.5, 0.04, -0.1, 2e-3, -1.5e-3}},
       {"perspective", {1e-4, -5e-5}},
       {"thermal_drift", {1e-4, -5e-5, 2e-6}},  // 0.06 mm offset and gain at the corner at 600 s
       {"tracking_lag", {1e-4}},                // 0.1 mm at 1000 mm/s
@@ -295,18 +299,20 @@ TEST(FitEffects, NonConvergenceFailsLoudly) {
 }
 
 // A bow of -1e-5 y^2 in x (0.025 mm at the field edge) the same at every x: mirror_separation
-// can only reproduce it as kappa -> 0, x0 -> inf with kappa x0 = 1e-5, so its centre runs
-// away and the cost falls towards a limit at infinity. The fit stops as soon as the centre is
-// 10 field half-widths out (a few iterations) and says why, instead of crawling on to
-// max_iterations.
-TEST(FitEffects, ACentreTheDataDoNotPinFailsFast) {
+// could only reproduce it as kappa -> 0, x0 -> inf with kappa x0 = 1e-5, a centre far outside
+// anything measured. The centre is held within the commanded points' bounding box: the fit
+// converges with the centre at the edge of the field, not at infinity.
+TEST(FitEffects, ACentreTheDataDoNotPinStaysInTheField) {
   FieldData data = Synthesise({}, 31);
   for (FieldPoint& p : data.points) p.meas.x() -= 1e-5 * p.cmd.y() * p.cmd.y();
   const Result<FitResult> fit = Fit(data, {"mirror_separation"});
-  EXPECT_EQ(fit.status().code(), StatusCode::kFailedPrecondition);
-  EXPECT_NE(fit.status().message().find("mirror_separation.x0"), std::string::npos)
-      << fit.status().message();
-  EXPECT_NE(fit.status().message().find("do not pin"), std::string::npos);
+  ASSERT_TRUE(fit.ok()) << fit.status().ToString();
+  const EffectFit& e = fit->effects[0];
+  EXPECT_GE(e.params[1], -50.0);
+  EXPECT_LE(e.params[1], 50.0);
+  EXPECT_GE(e.params[2], -50.0);
+  EXPECT_LE(e.params[2], 50.0);
+  EXPECT_NEAR(std::abs(e.params[1]), 50.0, 1e-6) << "the centre goes as far as the field allows";
 }
 
 // The diagnosis runs ~100 fits of ~1000 points with 3-4 effects in under 2 s; one fit here

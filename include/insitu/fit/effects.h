@@ -44,6 +44,11 @@ class Effect {
   // (residual[i] = meas - model for point i).
   virtual std::vector<double> Initial(const FieldData& data,
                                       const std::vector<Eigen::Vector2d>& residual) const = 0;
+  // Where a fit may take the parameters: `lo` and `hi` come in as -inf and +inf, one per
+  // parameter; an effect narrows them to what is physical (a centre within the measured
+  // field, a focal length that is one).
+  virtual void Bounds(const FieldData& /*data*/, std::vector<double>* /*lo*/,
+                      std::vector<double>* /*hi*/) const {}
   // Moves the modelled position `uv` of point `p` by the effect with `params`.
   virtual void Apply(const FieldPoint& p, const double* params, Eigen::Vector2d* uv) const = 0;
 };
