@@ -44,14 +44,15 @@ std::string Mm(double v) {
 }
 
 // Parameter vector of the physical fit.
-enum Param { kF, kC3, kC5, kTiltX, kX0, kY0, kPhi, kTx, kTy, kParams };
+enum Param { kF, kC3, kC5, kTiltX, kTiltY, kX0, kY0, kPhi, kTx, kTy, kParams };
 const char* const kParamNames[kParams] = {"focal_length_mm", "ftheta_c3",        "ftheta_c5",
-                                          "x_axis_tilt_mrad", "x_zero_offset_mrad",
+                                          "x_axis_tilt_mrad", "y_axis_tilt_mrad",
+                                          "x_zero_offset_mrad",
                                           "y_zero_offset_mrad", "plate_rotation_mrad",
                                           "plate_x_mm",        "plate_y_mm"};
 // Reported in mrad where the name says so; the solver works in rad.
 double Reported(int k, double v) {
-  return (k == kTiltX || k == kX0 || k == kY0 || k == kPhi) ? v * 1e3 : v;
+  return (k == kTiltX || k == kTiltY || k == kX0 || k == kY0 || k == kPhi) ? v * 1e3 : v;
 }
 
 // Residual of one target: R(phi) meas + t - spot(cmd), galvo frame, mm.
@@ -68,7 +69,7 @@ struct TargetCost {
     h.c3 = p[kC3];
     h.c5 = p[kC5];
     h.x_axis_tilt_rad = p[kTiltX];
-    h.y_axis_tilt_rad = T(design_.y_axis_tilt_mrad * 1e-3);
+    h.y_axis_tilt_rad = p[kTiltY];
     h.beam_offset_x_rad = T(0);
     h.beam_offset_y_rad = T(0);
     h.beam_focal_scale = T(1);
@@ -248,6 +249,7 @@ Result<HeadFieldFit> HeadFieldFit::Fit(const std::vector<TargetSample>& samples,
   p[kC3] = design.ftheta_c3;
   p[kC5] = design.ftheta_c5;
   p[kTiltX] = design.x_axis_tilt_mrad * 1e-3;
+  p[kTiltY] = design.y_axis_tilt_mrad * 1e-3;
   p[kPhi] = std::atan2(start.linear()(1, 0), start.linear()(0, 0));
   p[kTx] = start.translation().x();
   p[kTy] = start.translation().y();
@@ -266,6 +268,7 @@ Result<HeadFieldFit> HeadFieldFit::Fit(const std::vector<TargetSample>& samples,
     fixed.push_back(kC5);
   }
   if (!options.fit_axis_tilt) fixed.push_back(kTiltX);
+  if (!options.fit_axis_tilt || !options.fit_y_axis_tilt) fixed.push_back(kTiltY);
   if (!options.fit_zero_offsets) {
     fixed.push_back(kX0);
     fixed.push_back(kY0);
@@ -292,6 +295,7 @@ Result<HeadFieldFit> HeadFieldFit::Fit(const std::vector<TargetSample>& samples,
   fit.head_.built.ftheta_c3 = p[kC3];
   fit.head_.built.ftheta_c5 = p[kC5];
   fit.head_.built.x_axis_tilt_mrad = p[kTiltX] * 1e3;
+  fit.head_.built.y_axis_tilt_mrad = p[kTiltY] * 1e3;
   fit.head_.x_zero_offset_mrad = p[kX0] * 1e3;
   fit.head_.y_zero_offset_mrad = p[kY0] * 1e3;
   fit.galvo_from_plate_.linear() = Eigen::Rotation2Dd(p[kPhi]).toRotationMatrix();

@@ -134,6 +134,17 @@ Status ReadSpec(const LoadedJob& job, FieldSpec* s, hw::MachineConfig* machine) 
   s->cross.line_width_mm = s->spiral.pitch_mm;  // one marked line width for both targets
   if (t.ok()) t.FailFromValidate(s->spiral.Validate());
   if (t.ok() && s->target_kind == "cross") t.FailFromValidate(s->cross.Validate());
+  if (g.ok() && t.ok() && s->target_kind != "pointer") {
+    // A check point sits half a diagonal pitch from four nodes: targets must not touch there.
+    const double pitch = 2.0 * s->half_size_mm / (s->n - 1);
+    const double gap = (s->check_points ? 0.5 * std::sqrt(2.0) : 1.0) * pitch;
+    const double size = s->target_kind == "cross" ? s->cross.length_mm : s->spiral.diameter_mm;
+    if (gap < 1.5 * size) {
+      g.Fail("n", "targets " + Num(size, 2) + " mm across would lie " + Num(gap, 2) +
+                      " mm apart (centre to centre) on this grid: fewer nodes or a wider grid "
+                      "(at least 1.5 target sizes apart)");
+    }
+  }
   if (t.ok() && !(s->target_exposure_ms > 0)) t.Fail("exposure_ms", "must be > 0");
   ConfigReader& m = r.Section("marking");
   m.Read("mark_speed_mm_per_s", &s->mark_speed_mm_per_s);
@@ -169,6 +180,7 @@ Status ReadSpec(const LoadedJob& job, FieldSpec* s, hw::MachineConfig* machine) 
     f.Read("focal_length", &s->head_fit.fit_focal_length);
     f.Read("ftheta_distortion", &s->head_fit.fit_ftheta_distortion);
     f.Read("axis_tilt", &s->head_fit.fit_axis_tilt);
+    f.Read("y_axis_tilt", &s->head_fit.fit_y_axis_tilt);
     f.Read("zero_offsets", &s->head_fit.fit_zero_offsets);
     f.Read("residual_table", &s->residual_table);
   }
@@ -176,7 +188,8 @@ Status ReadSpec(const LoadedJob& job, FieldSpec* s, hw::MachineConfig* machine) 
   r.Read("max_error_rms_um_after", &s->max_error_rms_um_after);
   if (r.ok() && !(s->max_error_rms_um_after >= 0)) r.Fail("max_error_rms_um_after", "must be >= 0");
   if (s->max_error_rms_um_after == 0) {
-    s->max_error_rms_um_after = s->target_kind == "pointer" ? 50.0 : 10.0;
+    s->max_error_rms_um_after =
+        s->route == "coaxial" ? 3.0 : s->target_kind == "pointer" ? 50.0 : 10.0;
   }
   ConfigReader& out = r.Section("output");
   out.Require("calibration");
@@ -521,9 +534,27 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
       report.metrics["distortion_removed_pct"] =
           r->rms_um_before > 0 ? 100.0 * (1.0 - r->rms_um_after / r->rms_um_before) : 0.0;
     }
-    const pattern::CorrectionTable table(r->correction);
-    if (WriteFileAtomically((dir / "correction.csv").string(), table.ToCsv()).ok()) {
-      report.artifacts["correction"] = "correction.csv";
+    std::string refused;
+    if (spec.verify) {
+      const bool must_improve = r->rms_um_before > spec.max_error_rms_um_after;
+      if (r->rms_um_after > spec.max_error_rms_um_after ||
+          (must_improve && r->rms_um_after >= r->rms_um_before)) {
+        refused = "coaxial second pass: the corrected field measures " + Num(r->rms_um_after, 2) +
+                  " um rms at the check points (before: " + Num(r->rms_um_before, 2) +
+                  " um; accepted: up to " + Num(spec.max_error_rms_um_after, 2) +
+                  " um, and less than before when before was above that); no correction.csv "
+                  "was written";
+      }
+    }
+    if (refused.empty()) {
+      const pattern::CorrectionTable table(r->correction);
+      if (WriteFileAtomically((dir / "correction.csv").string(), table.ToCsv()).ok()) {
+        report.artifacts["correction"] = "correction.csv";
+      }
+      report.warnings.push_back(
+          "correction.csv covers the coaxial field only (+-" + Num(spec.coaxial.half_size_mm, 2) +
+          " mm); beyond it a table repeats its edge offsets: use it as head.correction only for "
+          "work inside that field");
     }
     std::vector<Target> all;
     for (const auto* set : {&r->grid, &r->check}) {
@@ -537,6 +568,7 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
     }
     log->info("coaxial: {:.2f} um rms before, {:.2f} um after at {} check points",
               r->rms_um_before, r->rms_um_after, r->check.size());
+    if (!refused.empty()) return finish(false, refused);
     return finish(true, "");
   }
   const calib::CameraIntrinsics& cam = previous->camera;
@@ -793,6 +825,11 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
   head.measured = true;
   head.measured_by = "field_calibration job " + job.path;
   head.model = physics->head();
+  if (!spec.pointer && !by_pointer) {
+    report.warnings.push_back(
+        "pointer.enabled is false: the pointer's path against the marking beam was not measured; "
+        "the calibration keeps the previous one, which belongs to the head as it was before");
+  }
   head.residual_mm = combined ? combined->residual().table() : optics::GridTable();
   if (!pointer_spots.empty()) {
     std::vector<fit::GalvoSample> spots;
@@ -843,12 +880,13 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
     // it cannot bring within the head's range takes the correction at the grid's edge.
     const double half = head_info.field_half_size_mm > 0 ? head_info.field_half_size_mm : reach;
     int clamped = 0;
+    bool counting = true;  // the clamped nodes of correction.csv (field.cor's are the same field)
     const auto offset_at = [&](double x, double y) {
       Vector3d c;
       if (corrected({x, y, 0.0}, &c) && std::abs(c.x()) <= half && std::abs(c.y()) <= half) {
         return Vector2d(c.head<2>() - Vector2d(x, y));
       }
-      ++clamped;
+      if (counting) ++clamped;
       const double cx = std::clamp(x, -reach, reach), cy = std::clamp(y, -reach, reach);
       return corrected({cx, cy, 0.0}, &c) ? Vector2d(c.head<2>() - Vector2d(cx, cy)) : Vector2d(0, 0);
     };
@@ -865,6 +903,7 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
     if (WriteFileAtomically((dir / "correction.csv").string(), correction.ToCsv()).ok()) {
       report.artifacts["correction"] = "correction.csv";
     }
+    counting = false;
     if (head_info.field_half_size_mm > 0) {
       // EzCad's table over the lens field, in insitu's default reading (docs/hardware.md). It
       // holds the correction on top of what the head does now (its controller's own table): on
@@ -956,11 +995,15 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
     }
     log->info("field: {:.1f} um rms after ({:.1f} % removed)", after.rms_um,
               report.metrics["distortion_removed_pct"]);
-    if (after.rms_um > spec.max_error_rms_um_after || after.rms_um >= before.rms_um) {
+    // On a head already within the bar, before and after are both the measurement's own
+    // scatter (~2 um): "less than before" is then a coin toss, and only the bar applies.
+    const bool must_improve = before.rms_um > spec.max_error_rms_um_after;
+    if (after.rms_um > spec.max_error_rms_um_after || (must_improve && after.rms_um >= before.rms_um)) {
       return finish(false, "second pass: the corrected field measures " + Num(after.rms_um, 1) +
                                " um rms at the check points (before: " + Num(before.rms_um, 1) +
                                " um; accepted: up to " + Num(spec.max_error_rms_um_after, 1) +
-                               " um and less than before); the calibration was not saved. Check "
+                               " um, and less than before when before was above that); the "
+                               "calibration was not saved. Check "
                                "field_after.png: a pattern means the plate or camera moved");
     }
   }

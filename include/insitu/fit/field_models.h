@@ -96,10 +96,17 @@ struct HeadFitOptions {
   bool fit_focal_length = true;
   bool fit_ftheta_distortion = true;  // c3 and c5
   // The difference of the two axis tilts shears the field and is fitted as the X axis's tilt;
-  // their common part is a rotation of the field, which the board's placement absorbs.
+  // their common part is nearly a rotation of the field, which the board's placement absorbs.
   bool fit_axis_tilt = true;
-  // Zero offsets move the whole field first (the board's placement absorbs that) and change its
-  // shape only in second order: fitted only when asked.
+  // The Y axis's tilt too: not quite a rotation (it grows with the field angle; 1 mrad of it
+  // leaves ~3.4 um when only the X tilt is fitted), but with the plate's placement free the
+  // two tilts and the placement's turn are nearly degenerate: on the as-built head of
+  // field_models_test, fitting it took the tilts' standard errors from 0.02 to 0.23 mrad.
+  bool fit_y_axis_tilt = false;
+  // Zero offsets move the whole field (the board's placement takes that) and centre its
+  // distortion off the command origin only in second order (3 mrad of them leave ~11 um; the
+  // usual 0.1-1 mrad, ~1 um): fitted only when asked, as they are poorly determined beside
+  // the placement (0.07-0.2 mrad standard errors on the as-built head).
   bool fit_zero_offsets = false;
   int max_iterations = 200;
 
@@ -156,7 +163,7 @@ class PhysicsPlusTableModel : public FieldModel {
 
 // The path of a second beam through a known head (the red pointer against the marking laser
 // the head was fitted to): its input misalignment and lateral colour, from where its spots were
-// measured (galvo frame). Errors: failed_precondition for fewer than 3 spots, or when the solver
+// measured (galvo frame). Errors: failed_precondition for fewer than 4 spots, or when the solver
 // does not converge.
 // With `fit_mirror_separation`, the head's mirror separation is fitted too: it tilts the chief
 // rays (the pupil's shift) and so shows only in spots at two heights or more (>= 2 mm apart,
