@@ -1,6 +1,6 @@
 // insitu: the operator's command line. Runs job files against the machine they name.
 //   insitu run JOB.yaml [--out DIR] [--set dotted.key=value ...]
-//   insitu diagnose DATA.csv [--out DIR]
+//   insitu diagnose DATA [--out DIR]             DATA: field CSV, correction CSV or .cor
 //   insitu cor import FILE.cor --out TABLE.csv [--reading R]   an EzCad correction as insitu's
 //                                                 field table, read as the head model explains
 //   insitu cor export TABLE.csv --lens MM [--format jcz|lmc1] [--reading R] --out FILE.cor
@@ -21,6 +21,7 @@
 #include "insitu/core/log.h"
 #include "insitu/fit/cor_physics.h"
 #include "insitu/hw/lmc_cor.h"
+#include "insitu/job/cor_reading.h"
 #include "insitu/job/diagnose_job.h"
 #include "insitu/job/job_file.h"
 #include "insitu/job/runner.h"
@@ -101,55 +102,19 @@ int Diagnose(const std::string& csv, const std::string& out_dir) {
 int CorImport(const std::string& cor_path, const std::string& out,
               const std::string& reading_code) {
   namespace lmc = insitu::hw::lmc;
-  auto cor = lmc::ReadCor(cor_path);
-  if (!cor.ok()) {
-    std::fprintf(stderr, "insitu: %s\n", cor.status().message().c_str());
-    return ExitCodeFor(cor.status());
+  auto read = insitu::job::ReadCorByPhysics(cor_path, reading_code);
+  if (!read.ok()) {
+    std::fprintf(stderr, "insitu: %s\n", read.status().message().c_str());
+    return read.status().code() == insitu::StatusCode::kInvalidArgument ? 2
+                                                                         : ExitCodeFor(read.status());
   }
-  const std::vector<lmc::CorReading> readings = lmc::AllCorReadings();
-  int forced = -1;
-  if (!reading_code.empty()) {
-    auto r = lmc::ParseCorReading(reading_code);
-    if (!r.ok()) {
-      std::fprintf(stderr, "insitu: --reading: %s\n", r.status().message().c_str());
-      return 2;
-    }
-    forced = static_cast<int>(std::find(readings.begin(), readings.end(), *r) - readings.begin());
-  }
-  std::vector<insitu::fit::CorReadingCandidate> candidates;
-  for (const lmc::CorReading& r : readings) {
-    insitu::fit::CorReadingCandidate c;
-    c.name = r.Name();
-    for (int i = 0; i < 65; ++i) {
-      for (int j = 0; j < 65; ++j) {
-        c.node_mm.push_back(cor->NodeMm(i, j));
-        c.offset_mm.push_back(cor->OffsetMm(i, j, r));
-      }
-    }
-    candidates.push_back(std::move(c));
-  }
-  insitu::fit::CorPhysicsOptions options;
-  options.lens_mm = cor->lens_mm();
-  auto choice = insitu::fit::ChooseCorReading(candidates, 0, options);
-  if (!choice.ok()) {
-    std::fprintf(stderr, "insitu: %s: %s\n", cor_path.c_str(), choice.status().message().c_str());
-    return ExitCodeFor(choice.status());
-  }
-  const int used = forced >= 0 ? forced : choice->chosen;
+  const std::vector<lmc::CorReading>& readings = read->readings;
+  const insitu::fit::CorReadingChoice* choice = &read->choice;
+  const lmc::CorFile* cor = &read->cor;
+  const int used = read->used;
+  const int forced = read->forced ? used : -1;
   const auto pct = [&](int k) { return 100.0 * choice->fits[k].explained; };
-  // The best reading other than the one used.
-  int next = -1;
-  for (int k = 0; k < static_cast<int>(readings.size()); ++k) {
-    if (k != used && (next < 0 || choice->fits[k].explained > choice->fits[next].explained)) {
-      next = k;
-    }
-  }
-  char what[512];
-  std::snprintf(what, sizeof what,
-                "read as %s%s: the two-mirror head model explains %.1f %% (%s: %s %.1f %%)",
-                readings[used].Name().c_str(), forced >= 0 ? " (--reading)" : "", pct(used),
-                used == choice->best ? "next best" : "best", readings[next].Name().c_str(),
-                pct(next));
+  const char* what = read->summary.c_str();
   const insitu::Status saved =
       insitu::WriteFileAtomically(out, "# insitu cor import " + cor_path + ": " + what + "\n" +
                                            lmc::ToCorrectionCsv(*cor, readings[used]));
@@ -236,10 +201,13 @@ int main(int argc, char** argv) {
       ->allow_extra_args(false);
 
   CLI::App* diagnose = app.add_subcommand(
-      "diagnose", "what the galvo model gets wrong in measured field data (CSV), and why");
+      "diagnose",
+      "what the galvo model gets wrong in field data (measured CSV, correction CSV or .cor), and why");
   std::string csv_path, diag_out;
   diagnose
-      ->add_option("data", csv_path, "field data CSV (x_cmd_mm, y_cmd_mm, x_meas_mm, y_meas_mm)")
+      ->add_option("data", csv_path,
+                   "field data CSV (x_cmd_mm, y_cmd_mm, x_meas_mm, y_meas_mm), a correction table "
+                   "CSV (x_mm, y_mm, dx_mm, dy_mm) or an EzCad .cor file")
       ->required();
   diagnose->add_option("--out", diag_out, "output folder (default insitu-out/diagnose-<name>)");
 

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -12,6 +13,8 @@
 #include "insitu/core/file.h"
 #include "insitu/fit/extension.h"
 #include "insitu/fit/field_data.h"
+#include "insitu/job/cor_reading.h"
+#include "insitu/pattern/correction_table.h"
 
 namespace insitu::job {
 namespace {
@@ -71,10 +74,46 @@ void DrawPanel(cv::Mat& img, const cv::Rect& area, const fit::FieldData& data,
 
 }  // namespace
 
+Result<fit::FieldData> LoadDiagnoseData(const std::string& path, std::string* source) {
+  const std::string ext = std::filesystem::path(path).extension().string();
+  if (ext == ".cor" || ext == ".COR") {
+    INSITU_ASSIGN_OR_RETURN(CorByPhysics cor, ReadCorByPhysics(path));
+    *source = "EzCad .cor table, " + cor.summary;
+    return FieldDataFromCorrection(cor.Nodes(), cor.Offsets(), path);
+  }
+  std::ifstream in(path);
+  if (!in) return NotFound("cannot read " + path);
+  std::stringstream text;
+  text << in.rdbuf();
+  // The header row decides: measured field data (x_cmd_mm ...) or a correction table
+  // (x_mm, y_mm, dx_mm, dy_mm: what `insitu cor import` and field_calibration write).
+  std::istringstream lines(text.str());
+  std::string line;
+  while (std::getline(lines, line)) {
+    if (!line.empty() && line[0] != '#' && line.find_first_not_of(" \t\r") != std::string::npos) break;
+  }
+  if (line.find("x_cmd_mm") == std::string::npos && line.find("dx_mm") != std::string::npos) {
+    INSITU_ASSIGN_OR_RETURN(pattern::CorrectionTable table,
+                            pattern::CorrectionTable::Parse(text.str(), path));
+    std::vector<Eigen::Vector2d> nodes;
+    const optics::GridTable& g = table.table();
+    for (double y : g.ys()) {
+      for (double x : g.xs()) nodes.emplace_back(x, y);
+    }
+    *source = "correction table (x_mm, y_mm, dx_mm, dy_mm): the head without it, commanded p + "
+              "offset, lands on p";
+    return FieldDataFromCorrection(nodes, g.values(), path);
+  }
+  *source = "measured field data";
+  return fit::ParseFieldCsv(text.str(), path);
+}
+
 Result<fit::Diagnosis> RunDiagnose(const std::string& csv_path, const std::string& out_dir,
                                    const fit::DiagnoseOptions& options) {
-  INSITU_ASSIGN_OR_RETURN(fit::FieldData data, fit::LoadFieldCsv(csv_path));
+  std::string source;
+  INSITU_ASSIGN_OR_RETURN(fit::FieldData data, LoadDiagnoseData(csv_path, &source));
   INSITU_ASSIGN_OR_RETURN(fit::Diagnosis d, fit::Diagnose(data, options));
+  d.notes.insert(d.notes.begin(), "source: " + source);
   std::error_code ec;
   std::filesystem::create_directories(out_dir, ec);
   if (ec) return NotFound("cannot create output folder " + out_dir);

@@ -1,4 +1,4 @@
-// `insitu diagnose DATA.csv [--out DIR]`: loads measured galvo field data (CONTRACT.md), runs
+// `insitu diagnose DATA [--out DIR]`: loads galvo field data (LoadDiagnoseData), runs
 // fit::Diagnose, and writes DIR/report.json (the diagnose schema of CONTRACT.md),
 // DIR/residuals.png (the residual vector field before and after, arrows scaled and labelled)
 // and DIR/extension.yaml (the extended model: fit/extension.h).
@@ -10,6 +10,14 @@
 #include "insitu/fit/diagnose.h"
 
 namespace insitu::job {
+
+// The data a diagnosis reads, by what the file is: an EzCad .cor table (read the way the head
+// model explains it: job/cor_reading.h), a correction table CSV (x_mm, y_mm, dx_mm, dy_mm: what
+// `insitu cor import` and field_calibration write), or measured field data (CONTRACT.md; what
+// field_calibration's field.csv holds). A table becomes the head without it: commanded p +
+// offset, landing on p. `source` says which, and for a .cor which reading. Errors: the
+// loader's (file, line, column named).
+Result<fit::FieldData> LoadDiagnoseData(const std::string& path, std::string* source);
 
 // Errors: those of loading the data (file, line, column named) and of the diagnosis; an output
 // folder that cannot be made or written (not_found / device_error naming it).
