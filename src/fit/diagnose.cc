@@ -230,7 +230,15 @@ Result<Diagnosis> Diagnose(const FieldData& data, const DiagnoseOptions& o) {
         trial.push_back(current[k]);
         reports.push_back(d.effects[k]);
       }
-      auto r = FitEffects(data, trial);
+      FitOptions warm;
+      for (const Effect* e : trial) {
+        std::vector<double> start;
+        for (size_t k = 0; k < current.size(); ++k) {
+          if (current[k] == e) start = best_fit.effects[k].params;
+        }
+        warm.start.push_back(start);
+      }
+      auto r = FitEffects(data, trial, {}, warm);
       if (!r.ok()) {
         d.notes.push_back(std::string(kHeadGeometry) + ": " + r.status().message());
       } else {
@@ -276,7 +284,10 @@ Result<Diagnosis> Diagnose(const FieldData& data, const DiagnoseOptions& o) {
       trial.push_back(e.get());
       const int params = best_fit.parameters + static_cast<int>(e->param_names().size());
       if (params + 1 > m) continue;  // too few points for this model
-      auto r = FitEffects(data, trial);
+      // The model so far starts where it was fitted; the candidate from its own start.
+      FitOptions warm;
+      for (const EffectFit& f : best_fit.effects) warm.start.push_back(f.params);
+      auto r = FitEffects(data, trial, {}, warm);
       if (!r.ok()) {
         d.notes.push_back(e->name() + ": " + r.status().message());
         continue;

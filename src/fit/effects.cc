@@ -45,11 +45,13 @@ std::vector<double> LinearStart(const FieldData& data, const std::vector<Vector2
   return out;
 }
 
-// The commanded points' bounding box: where an effect's optical axis (a centre x0, y0) may
-// lie. The axis of a measured field lies inside the field that was measured; where the data do
-// not pin it, the cost falls towards a limit at infinity instead (mirror_separation on points
-// along the axes only: kappa -> 0 and x0 -> inf with kappa x0 fixed reproduce a y^2 bow, a
-// term with no physical reason), and a free fit would follow it.
+// Where an effect's optical axis (a centre x0, y0) may lie: within the field the commands
+// span, taken symmetric about the command origin (a galvo's command 0 is the middle of its
+// range, so a data set measured on one side of it, like seed 001's moves along +x and +y,
+// still belongs to a field around it). The axis of a measured field lies inside it; where the
+// data do not pin it, the cost falls towards a limit at infinity instead (mirror_separation on
+// points along the axes only: kappa -> 0 and x0 -> inf with kappa x0 fixed reproduce a y^2 bow,
+// a term with no physical reason), and a free fit would follow it.
 void CentreBounds(const FieldData& data, int x0_index, std::vector<double>* lo,
                   std::vector<double>* hi) {
   if (data.points.empty()) return;
@@ -58,10 +60,10 @@ void CentreBounds(const FieldData& data, int x0_index, std::vector<double>* lo,
     a = a.cwiseMin(p.cmd);
     b = b.cwiseMax(p.cmd);
   }
-  (*lo)[x0_index] = a.x();
-  (*hi)[x0_index] = b.x();
-  (*lo)[x0_index + 1] = a.y();
-  (*hi)[x0_index + 1] = b.y();
+  (*lo)[x0_index] = std::min(a.x(), -b.x());
+  (*hi)[x0_index] = std::max(b.x(), -a.x());
+  (*lo)[x0_index + 1] = std::min(a.y(), -b.y());
+  (*hi)[x0_index + 1] = std::max(b.y(), -a.y());
 }
 
 Vector2d Centroid(const FieldData& data) {

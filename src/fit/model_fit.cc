@@ -172,23 +172,34 @@ void Model(const FieldData& data, const Chain& chain, const std::vector<double>&
 }
 
 // Starting values: each effect in chain order from the residual the effects before it leave.
-std::vector<double> InitialTheta(const FieldData& data, const Chain& chain) {
+std::vector<double> InitialTheta(const FieldData& data, const Chain& chain,
+                                 const std::vector<std::vector<double>>& start) {
   std::vector<double> theta(chain.parameters(), 0.0);
   std::vector<Vector2d> residual(data.points.size());
   for (int k = 0; k < chain.size(); ++k) {
-    // The effects before k only: zero parameters need not mean "no effect" (head_geometry's
-    // focal length).
-    for (size_t i = 0; i < data.points.size(); ++i) {
-      Vector2d uv = data.points[i].cmd;
-      for (int e = 0; e < k; ++e) {
-        chain.effects[e]->Apply(data.points[i], theta.data() + chain.begin[e], &uv);
+    const size_t given = static_cast<size_t>(chain.given[k]);
+    const int size = chain.begin[k + 1] - chain.begin[k];
+    std::vector<double> init;
+    if (given < start.size() && static_cast<int>(start[given].size()) == size) {
+      init = start[given];
+    } else {
+      // The effects before k only: zero parameters need not mean "no effect" (head_geometry's
+      // focal length).
+      for (size_t i = 0; i < data.points.size(); ++i) {
+        Vector2d uv = data.points[i].cmd;
+        for (int e = 0; e < k; ++e) {
+          chain.effects[e]->Apply(data.points[i], theta.data() + chain.begin[e], &uv);
+        }
+        residual[i] = data.points[i].meas - uv;
       }
-      residual[i] = data.points[i].meas - uv;
+      init = chain.effects[k]->Initial(data, residual);
     }
-    const std::vector<double> init = chain.effects[k]->Initial(data, residual);
-    for (int j = chain.begin[k]; j < chain.begin[k + 1]; ++j) {
-      const double v = init[j - chain.begin[k]];
-      theta[j] = std::isfinite(v) ? v : 0.0;
+    constexpr double kInf = std::numeric_limits<double>::infinity();
+    std::vector<double> lo(size, -kInf), hi(size, kInf);
+    chain.effects[k]->Bounds(data, &lo, &hi);
+    for (int j = 0; j < size; ++j) {
+      const double v = std::isfinite(init[j]) ? init[j] : 0.0;
+      theta[chain.begin[k] + j] = std::clamp(v, lo[j], hi[j]);
     }
   }
   return theta;
@@ -323,7 +334,7 @@ Result<FitResult> FitEffects(const FieldData& data, const std::vector<const Effe
   FitResult result;
   result.points = n;
   result.parameters = p;
-  std::vector<double> theta = InitialTheta(sub, chain);
+  std::vector<double> theta = InitialTheta(sub, chain, options.start);
   std::vector<double> se(p, std::numeric_limits<double>::quiet_NaN());
 
   if (p == 0) {

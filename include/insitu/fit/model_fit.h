@@ -16,6 +16,10 @@ namespace insitu::fit {
 struct FitOptions {
   int max_iterations = 200;
   bool compute_stderr = true;
+  // Starting values, one entry per effect in the order given (or empty): a non-empty entry
+  // (the effect's parameter count) replaces the effect's own Initial(), e.g. the values a
+  // model fitted before a new effect joined it. Clamped into the effect's bounds.
+  std::vector<std::vector<double>> start;
   Status Validate() const;
 };
 
