@@ -57,9 +57,9 @@ double Reported(int k, double v) {
 
 // Residual of one target: R(phi) meas + t - spot(cmd), galvo frame, mm.
 struct TargetCost {
-  TargetCost(const optics::HeadGeometry& design, const optics::MirrorAngles& angles,
-             const Vector3d& cmd, const Vector2d& meas)
-      : design_(design), angles_(angles), cmd_(cmd), meas_(meas) {}
+  TargetCost(const optics::HeadGeometry& design, const optics::BeamPath& beam,
+             const optics::MirrorAngles& angles, const Vector3d& cmd, const Vector2d& meas)
+      : design_(design), beam_(beam), angles_(angles), cmd_(cmd), meas_(meas) {}
 
   template <typename T>
   bool operator()(const T* const p, T* residual) const {
@@ -70,9 +70,9 @@ struct TargetCost {
     h.c5 = p[kC5];
     h.x_axis_tilt_rad = p[kTiltX];
     h.y_axis_tilt_rad = p[kTiltY];
-    h.beam_offset_x_rad = T(0);
-    h.beam_offset_y_rad = T(0);
-    h.beam_focal_scale = T(1);
+    h.beam_offset_x_rad = T(beam_.offset_x_mrad * 1e-3);
+    h.beam_offset_y_rad = T(beam_.offset_y_mrad * 1e-3);
+    h.beam_focal_scale = T(1.0 + beam_.lateral_colour_pct / 100.0);
     h.exit_pupil_height_mm = design_.exit_pupil_height_mm;
     h.pupil_aberration = design_.pupil_aberration;
     h.telecentric = design_.telecentric;
@@ -90,6 +90,7 @@ struct TargetCost {
   }
 
   optics::HeadGeometry design_;
+  optics::BeamPath beam_;
   optics::MirrorAngles angles_;
   Vector3d cmd_;
   Vector2d meas_;
@@ -220,8 +221,10 @@ Status HeadFitOptions::Validate() const {
 
 Result<HeadFieldFit> HeadFieldFit::Fit(const std::vector<TargetSample>& samples,
                                        const optics::HeadGeometry& design,
-                                       const HeadFitOptions& options) {
+                                       const HeadFitOptions& options,
+                                       const optics::BeamPath& beam) {
   INSITU_RETURN_IF_ERROR(options.Validate());
+  INSITU_RETURN_IF_ERROR(beam.Validate());
   INSITU_RETURN_IF_ERROR(design.Validate().Prefixed("design"));
   if (samples.size() < 6) {
     return FailedPrecondition("the physical head fit needs at least 6 targets, got " +
@@ -258,7 +261,7 @@ Result<HeadFieldFit> HeadFieldFit::Fit(const std::vector<TargetSample>& samples,
   for (size_t i = 0; i < samples.size(); ++i) {
     problem.AddResidualBlock(
         new ceres::AutoDiffCostFunction<TargetCost, 2, kParams>(
-            new TargetCost(design, angles[i], samples[i].cmd, samples[i].meas)),
+            new TargetCost(design, beam, angles[i], samples[i].cmd, samples[i].meas)),
         nullptr, p);
   }
   std::vector<int> fixed;
@@ -288,6 +291,7 @@ Result<HeadFieldFit> HeadFieldFit::Fit(const std::vector<TargetSample>& samples,
   }
 
   HeadFieldFit fit;
+  fit.beam_ = beam;
   fit.summary_ = summary.BriefReport();
   fit.head_.design = design;
   fit.head_.built = design;
@@ -341,7 +345,7 @@ Result<HeadFieldFit> HeadFieldFit::Fit(const std::vector<TargetSample>& samples,
 
 Vector2d HeadFieldFit::Predict(const Vector3d& cmd) const {
   Vector3d spot;
-  if (!head_.Spot(cmd, {}, &spot)) return Vector2d(NAN, NAN);
+  if (!head_.Spot(cmd, beam_, &spot)) return Vector2d(NAN, NAN);
   return spot.head<2>();
 }
 

@@ -750,7 +750,15 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
                              std::to_string(spec.n * spec.n) + " grid targets (" + list +
                              " mm; the warnings say where and why); the grid must be complete");
   }
-  auto physics = fit::HeadFieldFit::Fit(grid, previous->head.model.design, spec.head_fit);
+  // The pointer's spots stand for the targets: through its path measured before (a field
+  // calibration with marked targets), the fitted head is still the marking beam's.
+  const optics::BeamPath& known = previous->head.pointer;
+  const bool known_pointer =
+      previous->head.measured && (known.offset_x_mrad != 0.0 || known.offset_y_mrad != 0.0 ||
+                                  known.lateral_colour_pct != 0.0);
+  const optics::BeamPath target_beam =
+      by_pointer && known_pointer ? known : optics::BeamPath{};
+  auto physics = fit::HeadFieldFit::Fit(grid, previous->head.model.design, spec.head_fit, target_beam);
   if (!physics.ok()) return finish(false, "fit: " + physics.status().ToString());
   for (const fit::HeadParamFit& p : physics->params()) {
     report.metrics["head_" + p.name] = p.value;
@@ -815,11 +823,17 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
 
   // The measured head as the calibration holds it.
   calib::HeadCalibration head = previous->head;
-  if (by_pointer) {
+  if (by_pointer && known_pointer) {
+    report.warnings.push_back(
+        "non-destructive field calibration: the head was measured with the pointer's spots and "
+        "taken to the marking beam through the pointer's path measured before (" +
+        previous->head.measured_by + "); a change of that path since is not seen");
+  } else if (by_pointer) {
     report.warnings.push_back(
         "non-destructive field calibration: the head was measured with the pointer's spots; "
         "marks carry the pointer's misalignment and lateral colour against the marking laser, "
-        "which this variant cannot see (mark the spiral targets to measure the laser itself)");
+        "which this variant cannot see (mark the spiral targets once to measure the laser and "
+        "the pointer's path; later pointer runs then go through it)");
     head.pointer = optics::BeamPath{};  // the fitted head is the pointer's own
   }
   head.measured = true;

@@ -125,8 +125,12 @@ class HeadFieldFit : public FieldModel {
   // Fits `samples` (plate frame) with the design geometry `design` as the controller's
   // correction. Errors: failed_precondition for fewer than 6 samples, or when the solver does
   // not converge (its report in the message).
+  // `beam`: the path of the beam that made the targets, against the head's own (the marking
+  // beam's): the pointer's measured path when its spots stand for the targets, so that the
+  // fitted head is still the marking beam's. Predict() is then that beam's.
   static Result<HeadFieldFit> Fit(const std::vector<TargetSample>& samples,
-                                  const optics::HeadGeometry& design, const HeadFitOptions& options);
+                                  const optics::HeadGeometry& design, const HeadFitOptions& options,
+                                  const optics::BeamPath& beam = {});
   std::string name() const override { return "physics"; }
   Eigen::Vector2d Predict(const Eigen::Vector3d& cmd) const override;
 
@@ -140,6 +144,7 @@ class HeadFieldFit : public FieldModel {
 
  private:
   optics::HeadModel head_;
+  optics::BeamPath beam_;
   Eigen::Isometry2d galvo_from_plate_ = Eigen::Isometry2d::Identity();
   std::vector<HeadParamFit> params_;
   double rms_mm_ = 0.0;
