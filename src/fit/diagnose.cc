@@ -127,6 +127,7 @@ std::string Describe(const std::string& name) {
       {"skew", "non-orthogonal axes"},
       {"mirror_separation", "two-mirror pincushion"},
       {"lens_radial", "radial lens distortion"},
+      {"head_geometry", "the scan head's own geometry"},
       {"perspective", "a measuring camera not parallel to the field"},
       {"thermal_drift", "thermal drift"},
       {"tracking_lag", "galvo tracking lag"},
@@ -504,8 +505,16 @@ std::string Diagnosis::Summary() const {
       if (k) s += ", ";
       s += Describe(effects[k].name) + " (" + effects[k].name;
       for (size_t j = 0; j < effects[k].params.size(); ++j) {
-        std::snprintf(buf, sizeof buf, "%s %s = %.4g", j ? "," : ":",
-                      effects[k].param_names[j].c_str(), effects[k].params[j]);
+        // A parameter the data do not determine (its standard error undefined: e.g. the
+        // mirror separation without points off the focal plane) is not quoted as a value.
+        const bool known = j >= effects[k].stderrs.size() || !std::isnan(effects[k].stderrs[j]);
+        if (known) {
+          std::snprintf(buf, sizeof buf, "%s %s = %.4g", j ? "," : ":",
+                        effects[k].param_names[j].c_str(), effects[k].params[j]);
+        } else {
+          std::snprintf(buf, sizeof buf, "%s %s not determined", j ? "," : ":",
+                        effects[k].param_names[j].c_str());
+        }
         s += buf;
       }
       s += ")";
