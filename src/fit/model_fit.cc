@@ -11,6 +11,8 @@
 #include <memory>
 #include <numeric>
 
+#include "fit/ceres_support.h"
+
 namespace insitu::fit {
 namespace {
 
@@ -235,41 +237,6 @@ std::vector<double> ParameterScale(const FieldData& data, const Chain& chain,
     }
   }
   return scale;
-}
-
-// Standard errors in z from (J^T J)^-1 sigma^2. Columns are normalised first so that the test
-// for a singular direction looks at correlation only; a parameter with a component in the null
-// space (or a zero column) is not defined by the data: NaN.
-std::vector<double> StandardErrorsZ(const Eigen::MatrixXd& jac, double sigma2) {
-  const int p = static_cast<int>(jac.cols());
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  std::vector<double> se(p, nan);
-  Eigen::VectorXd norm = jac.colwise().norm().transpose();
-  std::vector<int> live;
-  for (int j = 0; j < p; ++j) {
-    if (norm(j) > 0.0 && std::isfinite(norm(j))) live.push_back(j);
-  }
-  if (live.empty()) return se;
-  Eigen::MatrixXd a(jac.rows(), live.size());
-  for (size_t c = 0; c < live.size(); ++c) a.col(c) = jac.col(live[c]) / norm(live[c]);
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(a.transpose() * a);
-  const Eigen::VectorXd& lambda = eig.eigenvalues();
-  const Eigen::MatrixXd& v = eig.eigenvectors();
-  // Normalised columns: eigenvalues sum to the column count; 1e-12 is far below any real
-  // correlation and far above the finite-difference noise of the Jacobian (~1e-9 squared).
-  const double floor = 1e-12 * lambda.maxCoeff();
-  for (size_t c = 0; c < live.size(); ++c) {
-    double var = 0.0, null = 0.0;
-    for (int e = 0; e < lambda.size(); ++e) {
-      if (lambda(e) > floor) {
-        var += v(c, e) * v(c, e) / lambda(e);
-      } else {
-        null += v(c, e) * v(c, e);
-      }
-    }
-    if (null < 1e-6) se[live[c]] = std::sqrt(var * sigma2) / norm(live[c]);
-  }
-  return se;
 }
 
 FieldData Subset(const FieldData& data, const std::vector<int>& use) {

@@ -39,6 +39,9 @@ Status WriteReport(const Report& report, const std::string& dir) {
   j["artifacts"] = report.artifacts;
   j["warnings"] = report.warnings;
   if (!report.ok) j["error"] = report.error;
+  for (const auto& [key, text] : report.extra_json) {
+    j[key] = nlohmann::ordered_json::parse(text, nullptr, /*allow_exceptions=*/false);
+  }
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   const std::string path = (std::filesystem::path(dir) / "report.json").string();

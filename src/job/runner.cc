@@ -15,45 +15,13 @@
 #include "insitu/job/step_gauge.h"
 #include "job/calibrate.h"
 #include "job/field_calibration.h"
+#include "job/machine_diagnosis.h"
 #include "job/mark.h"
 #include "job/progress.h"
 #include "job/scan_job.h"
 
 namespace insitu::job {
 namespace {
-
-void ReadArtifact(ConfigReader& r, ScanJobSpec* spec) {
-  if (r.Has("artifact")) {
-    ConfigReader& a = r.Section("artifact");
-    a.Require("kind");
-    a.ReadEnum("kind", &spec->artifact, {"step_gauge", "insert"});
-    if (spec->artifact == "step_gauge") {
-      a.Read("heights_mm", &spec->gauge.heights_mm);
-      a.Read("step_width_mm", &spec->gauge.step_width_mm);
-      a.Read("length_mm", &spec->gauge.length_mm);
-      double center[2] = {0, 0};
-      a.ReadArray("center_mm", center, 2);
-      spec->gauge.center_x_mm = center[0];
-      spec->gauge.center_y_mm = center[1];
-      a.Read("base_z_mm", &spec->gauge.base_z_mm);
-      a.Read("edge_margin_mm", &spec->gauge.edge_margin_mm);
-      a.Read("bin_mm", &spec->gauge.bin_mm);
-      if (a.ok()) a.FailFromValidate(spec->gauge.Validate());
-    } else if (spec->artifact == "insert") {
-      InsertSpec& in = spec->insert;
-      a.Read("thickness_mm", &in.thickness_mm);
-      a.Read("edge_mm", &in.edge_mm);
-      a.Read("hole_diameter_mm", &in.hole_diameter_mm);
-      a.Read("tip_radius_mm", &in.tip_radius_mm);
-      a.Read("base_z_mm", &in.base_z_mm);
-      a.Read("gap_mm", &in.gap_mm);
-      a.Read("inlier_mm", &in.inlier_mm);
-      a.Read("corner_exclusion_mm", &in.corner_exclusion_mm);
-      a.ReadArray("rake_fit_mm", in.rake_fit_mm.data(), 2);
-      if (a.ok()) a.FailFromValidate(in.Validate());
-    }
-  }
-}
 
 std::string FormatMm(double v) {
   char buf[32];
@@ -255,7 +223,9 @@ Result<Report> RunScanJob(const LoadedJob& job, const RunOptions& options) {
 
 }  // namespace
 
-std::vector<std::string> JobKinds() { return {"scan", "accuracy", "calibrate", "field_calibration", "mark"}; }
+std::vector<std::string> JobKinds() {
+  return {"scan", "accuracy", "calibrate", "field_calibration", "mark", "diagnose_machine"};
+}
 
 namespace {
 
@@ -275,6 +245,7 @@ Status CheckJob(const LoadedJob& job) {
   }
   if (job.kind == "calibrate") return CheckCalibrateJob(job);
   if (job.kind == "field_calibration") return CheckFieldCalibrationJob(job);
+  if (job.kind == "diagnose_machine") return CheckDiagnoseMachineJob(job);
   if (job.kind == "mark") return CheckMarkJob(job);
   return UnknownKind(job);
 }
@@ -283,6 +254,7 @@ Result<Report> RunJob(const LoadedJob& job, const RunOptions& options) {
   if (job.kind == "scan" || job.kind == "accuracy") return RunScanJob(job, options);
   if (job.kind == "calibrate") return RunCalibrateJob(job, options);
   if (job.kind == "field_calibration") return RunFieldCalibrationJob(job, options);
+  if (job.kind == "diagnose_machine") return RunDiagnoseMachineJob(job, options);
   if (job.kind == "mark") return RunMarkJob(job, options);
   return UnknownKind(job);
 }

@@ -34,6 +34,9 @@ struct ScanJobSpec {
 Status ReadScanJob(const LoadedJob& job, ScanJobSpec* spec, hw::MachineConfig* machine,
                    const std::function<void(ConfigReader&)>& extra = {});
 
+// The `artifact:` section (step_gauge or insert), when present.
+void ReadArtifact(ConfigReader& r, ScanJobSpec* spec);
+
 struct ScanMachine {
   hw::Machine machine;
   calib::CalibrationSet calibration;

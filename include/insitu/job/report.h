@@ -21,6 +21,8 @@ struct Report {
   std::map<std::string, std::string> artifacts;  // name -> path relative to the report
   std::vector<std::string> warnings;
   std::string error;  // set when !ok
+  // Further top-level keys with their values as JSON text (a diagnosis's cause, effects, ...).
+  std::map<std::string, std::string> extra_json;
 };
 
 std::string NowIso8601();

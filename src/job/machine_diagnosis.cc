@@ -1,0 +1,533 @@
+#include "job/machine_diagnosis.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+
+#include <Eigen/Geometry>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "insitu/core/file.h"
+#include "insitu/core/log.h"
+#include "insitu/fit/group_model.h"
+#include "insitu/geometry/triangulation.h"
+#include "insitu/job/scan.h"
+#include "job/progress.h"
+#include "job/scan_job.h"
+
+namespace insitu::job {
+namespace {
+
+using Eigen::Vector2d;
+using Eigen::Vector3d;
+
+struct DiagnoseMachineSpec {
+  ScanJobSpec scan;
+  std::vector<double> stage_z_mm{0.0};  // one pass per height
+  double bin_mm = 2.0;                  // points along a line averaged over this length
+  fit::GroupSelectionOptions selection;
+  // The residuals of the machine as calibrated (a scan right after calibrating): what the
+  // calibration itself leaves is not a change of the machine.
+  std::string baseline_path;
+  bool record_baseline = false;
+};
+
+Status ReadSpec(const LoadedJob& job, DiagnoseMachineSpec* s, hw::MachineConfig* machine) {
+  INSITU_RETURN_IF_ERROR(ReadScanJob(job, &s->scan, machine, [&](ConfigReader& r) {
+    ReadArtifact(r, &s->scan);
+    if (r.Has("diagnosis")) {
+      ConfigReader& d = r.Section("diagnosis");
+      d.Read("stage_z_mm", &s->stage_z_mm);
+      d.Read("bin_mm", &s->bin_mm);
+      d.Read("folds", &s->selection.folds);
+      d.Read("min_delta_bic", &s->selection.min_delta_bic);
+      d.Read("min_cv_improvement", &s->selection.min_cv_improvement);
+      std::string baseline;
+      d.Read("baseline", &baseline);
+      if (!baseline.empty()) s->baseline_path = ResolvePath(job.folder, baseline);
+      d.Read("record_baseline", &s->record_baseline);
+      if (d.ok() && s->stage_z_mm.empty()) d.Fail("stage_z_mm", "must list at least one height");
+      if (d.ok() && !(s->bin_mm > 0)) d.Fail("bin_mm", "must be > 0");
+      if (d.ok()) d.FailFromValidate(s->selection.Validate());
+    }
+  }));
+  if (s->scan.artifact != "step_gauge") {
+    return InvalidArgument(job.path + ": a diagnose_machine job needs an artifact: of kind step_gauge");
+  }
+  if (s->scan.method != 1) {
+    return InvalidArgument(job.path + ": reconstruction.method must be 1 (camera and light plane)");
+  }
+  if (s->baseline_path.empty()) {
+    // Beside the calibration it belongs to.
+    s->baseline_path = (std::filesystem::path(s->scan.machine.calibration_path).parent_path() /
+                        "diagnose_baseline.csv")
+                           .string();
+  }
+  return Status::Ok();
+}
+
+// One stripe centre, averaged over a bin along its line.
+struct Observation {
+  Vector2d pixel;  // full sensor
+  int pass = 0, line = 0, step = 0, bin = 0;
+  double baseline_mm = 0.0;  // its residual when the machine was as calibrated
+};
+
+// An observation's place, as the baseline file names it.
+std::string KeyOf(double stage_z_mm, double line_x_mm, int step, int bin) {
+  char b[96];
+  std::snprintf(b, sizeof b, "%.3f,%.3f,%d,%d", stage_z_mm, line_x_mm, step, bin);
+  return b;
+}
+
+struct Pass {
+  double stage_z_mm = 0.0;
+  std::vector<std::pair<Vector3d, Vector3d>> lines;  // commanded ends
+};
+
+enum Group { kCameraPose, kCameraDistortion, kHeadScale, kGalvoOffset, kLightPlane, kStageScale };
+
+std::vector<fit::ParameterGroup> Candidates(bool two_heights) {
+  std::vector<fit::ParameterGroup> c = {
+      {"camera_pose", "the camera moved since calibration (bumped, remounted)",
+       {"rx_mrad", "ry_mrad", "rz_mrad", "tx_mm", "ty_mm", "tz_mm"},
+       {0.2, 0.2, 0.2, 0.1, 0.1, 0.1}},
+      {"camera_distortion", "the camera lens's distortion changed (refocused, another lens)",
+       {"dk1", "dk2"}, {1e-3, 1e-3}},
+      {"head_scale", "the field's size changed: objective focal length or galvo gain",
+       {"s_permille"}, {0.5}},
+      {"galvo_offset", "the field moved: mirror zero offsets", {"ox_mm", "oy_mm"}, {0.05, 0.05}},
+      {"light_plane",
+       "the pointer's light planes lean otherwise: a turn about the line (mirror axis) and a "
+       "lean growing with the field (the exit pupil's height)",
+       {"tilt_mrad", "pupil_mm"}, {0.5, 5.0}},
+  };
+  if (two_heights) {
+    c.push_back({"stage_scale", "the stage moves differ from its commands", {"s_permille"}, {0.5}});
+  }
+  return c;
+}
+
+class CellModel : public fit::GroupModel {
+ public:
+  CellModel(const calib::CalibrationSet& cal, const StepGaugeSpec& gauge, std::vector<Pass> passes,
+            std::vector<Observation> obs, bool two_heights)
+      : cal_(cal), gauge_(gauge), passes_(std::move(passes)), obs_(std::move(obs)),
+        two_heights_(two_heights) {
+    std::vector<Vector2d> px;
+    for (const Observation& o : obs_) px.push_back(o.pixel);
+    normalized_ = cal_.camera.Undistort(px);
+  }
+
+  int units() const override { return static_cast<int>(obs_.size()); }
+  int fold_key(int unit) const override { return obs_[unit].pass * 100000 + obs_[unit].line; }
+
+  bool Residuals(const std::vector<double>& theta, const std::vector<int>& use,
+                 std::vector<double>* residuals) const override {
+    residuals->assign(use.size(), 0.0);
+    std::vector<Vector3d> points;
+    if (!Points(theta, use, &points)) return false;
+    const double stage_scale = two_heights_ ? theta[Begin(kStageScale)] * 1e-3 : 0.0;
+    for (size_t k = 0; k < use.size(); ++k) {
+      const Observation& o = obs_[use[k]];
+      const double z_stage = passes_[o.pass].stage_z_mm * (1.0 + stage_scale);
+      (*residuals)[k] =
+          points[k].z() - (gauge_.base_z_mm + gauge_.heights_mm[o.step] + z_stage) - o.baseline_mm;
+    }
+    return true;
+  }
+
+  // The points of `use` in the galvo frame for parameters theta.
+  bool Points(const std::vector<double>& theta, const std::vector<int>& use,
+              std::vector<Vector3d>* out) const {
+    // Rays: the camera's pose and its distortion as theta has them.
+    const double* pose = &theta[Begin(kCameraPose)];
+    const double* dist = &theta[Begin(kCameraDistortion)];
+    const Eigen::Isometry3d galvo_from_camera = cal_.galvo.camera_from_galvo.inverse();
+    const Eigen::Matrix3d turn =
+        (Eigen::AngleAxisd(pose[2] * 1e-3, Vector3d::UnitZ()) *
+         Eigen::AngleAxisd(pose[1] * 1e-3, Vector3d::UnitY()) *
+         Eigen::AngleAxisd(pose[0] * 1e-3, Vector3d::UnitX()))
+            .toRotationMatrix();
+    const Vector3d origin = galvo_from_camera.translation() + Vector3d(pose[3], pose[4], pose[5]);
+    const Eigen::Matrix3d to_galvo = turn * galvo_from_camera.linear();
+    std::vector<Vector2d> normalized;
+    if (dist[0] != 0.0 || dist[1] != 0.0) {
+      calib::CameraIntrinsics cam = cal_.camera;
+      cam.k1 += dist[0];
+      cam.k2 += dist[1];
+      std::vector<Vector2d> px;
+      for (int i : use) px.push_back(obs_[i].pixel);
+      normalized = cam.Undistort(px);
+    } else {
+      for (int i : use) normalized.push_back(normalized_[i]);
+    }
+    // Light planes (galvo frame) for the lines used, as theta moves the field.
+    const double scale = 1.0 + theta[Begin(kHeadScale)] * 1e-3;
+    const Vector3d shift(theta[Begin(kGalvoOffset)], theta[Begin(kGalvoOffset) + 1], 0.0);
+    const double tilt = theta[Begin(kLightPlane)] * 1e-3;
+    const double pupil = theta[Begin(kLightPlane) + 1];  // mm of exit pupil height
+    // Chief rays lean by x / L from a pupil L above the field; L + dL leans them by
+    // -x dL / L^2 more.
+    const double height = cal_.head.measured ? cal_.head.model.built.exit_pupil_height_mm
+                                             : cal_.galvo.pivot_height_mm;
+    std::map<std::pair<int, int>, Eigen::Vector4d> planes;
+    out->resize(use.size());
+    for (size_t k = 0; k < use.size(); ++k) {
+      const Observation& o = obs_[use[k]];
+      const auto key = std::make_pair(o.pass, o.line);
+      auto it = planes.find(key);
+      if (it == planes.end()) {
+        const auto& [from, to] = passes_[o.pass].lines[o.line];
+        Vector3d a = from, b = to;
+        a.head<2>() = scale * a.head<2>() + shift.head<2>();
+        b.head<2>() = scale * b.head<2>() + shift.head<2>();
+        const geometry::PlaneInCamera p =
+            geometry::LineLightPlane(cal_, a, b, 20.0, Eigen::Isometry3d::Identity());
+        Vector3d n = p.coeffs.head<3>();
+        double d = p.coeffs[3];
+        const double lean = tilt - a.x() * pupil / (height * height);
+        if (lean != 0.0) {
+          // Turned about the line (along y through the line's commanded position, z = 0).
+          const Vector3d on(a.x(), 0.0, a.z());
+          const Vector3d anchor = on - n * ((n.dot(on) + d) / n.squaredNorm());
+          n = Eigen::AngleAxisd(lean, Vector3d::UnitY()) * n;
+          d = -n.dot(anchor);
+        }
+        it = planes.emplace(key, Eigen::Vector4d(n.x(), n.y(), n.z(), d)).first;
+      }
+      const Eigen::Vector4d& pl = it->second;
+      const Vector3d dir = to_galvo * Vector3d(normalized[k].x(), normalized[k].y(), 1.0);
+      const double denom = pl.head<3>().dot(dir);
+      if (std::abs(denom) < 1e-12) return false;
+      const double t = -(pl.head<3>().dot(origin) + pl[3]) / denom;
+      (*out)[k] = origin + t * dir;
+    }
+    return true;
+  }
+
+  // The gauge placement moves which step a point is on only at the edges, which the margin
+  // keeps out; each point's step is fixed once (at theta = 0), so the residuals are smooth.
+  static int StepOf(const StepGaugeSpec& g, const Vector2d& xy) {
+    const double half_width = 0.5 * g.step_width_mm * g.heights_mm.size();
+    const double x = xy.x() - g.center_x_mm + half_width;
+    const double y = xy.y() - g.center_y_mm;
+    if (std::abs(y) > 0.5 * g.length_mm - g.edge_margin_mm) return -1;
+    const int k = static_cast<int>(std::floor(x / g.step_width_mm));
+    if (k < 0 || k >= static_cast<int>(g.heights_mm.size())) return -1;
+    const double in = x - k * g.step_width_mm;
+    if (in < g.edge_margin_mm || in > g.step_width_mm - g.edge_margin_mm) return -1;
+    return k;
+  }
+
+  int Begin(Group g) const {
+    // Layout of theta: the candidates in Candidates() order.
+    static const int kBegin[] = {0, 6, 8, 9, 11, 13};
+    return kBegin[g];
+  }
+  int parameters() const { return two_heights_ ? 14 : 13; }
+
+ private:
+  const calib::CalibrationSet& cal_;
+  StepGaugeSpec gauge_;
+  std::vector<Pass> passes_;
+  std::vector<Observation> obs_;
+  std::vector<Vector2d> normalized_;
+  bool two_heights_;
+};
+
+nlohmann::ordered_json GroupJson(const fit::GroupReport& g) {
+  nlohmann::ordered_json params = nlohmann::ordered_json::object();
+  nlohmann::ordered_json errs = nlohmann::ordered_json::object();
+  for (size_t k = 0; k < g.params.size(); ++k) {
+    params[g.params[k]] = g.values[k];
+    if (std::isfinite(g.stderrs[k])) {
+      errs[g.params[k]] = g.stderrs[k];
+    } else {
+      errs[g.params[k]] = nullptr;
+    }
+  }
+  nlohmann::ordered_json e;
+  e["name"] = g.name;
+  e["meaning"] = g.meaning;
+  e["params"] = params;
+  e["stderr"] = errs;
+  e["delta_bic"] = g.delta_bic;
+  e["cv_rms_mm"] = g.cv_rms;
+  return e;
+}
+
+// Residual heights over the gauge, before and after, as coloured dots (blue low, red high,
+// the same scale in both panels).
+Status SaveResidualMap(const std::vector<Vector3d>& points, const std::vector<double>& before,
+                       const std::vector<double>& after, const std::string& title_after,
+                       const std::string& path) {
+  const int w = 600, h = 600, pad = 50;
+  cv::Mat img(h + 40, 2 * w + 20, CV_8UC3, cv::Scalar(255, 255, 255));
+  Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
+  for (const Vector3d& p : points) {
+    lo = lo.cwiseMin(p.head<2>());
+    hi = hi.cwiseMax(p.head<2>());
+  }
+  double span = 0;
+  for (double r : before) span = std::max(span, std::abs(r));
+  if (!(span > 0)) span = 1e-3;
+  const double sx = (w - 2 * pad) / std::max(1e-6, hi.x() - lo.x());
+  const double sy = (h - 2 * pad) / std::max(1e-6, hi.y() - lo.y());
+  const auto panel = [&](int x0, const std::vector<double>& r, const std::string& title) {
+    cv::rectangle(img, cv::Rect(x0, 0, w, h), cv::Scalar(200, 200, 200));
+    for (size_t k = 0; k < points.size() && k < r.size(); ++k) {
+      const double t = std::clamp(r[k] / span, -1.0, 1.0);
+      const cv::Scalar c = t >= 0 ? cv::Scalar(255 * (1 - t), 255 * (1 - t), 255)
+                                  : cv::Scalar(255, 255 * (1 + t), 255 * (1 + t));
+      const cv::Point q(x0 + pad + static_cast<int>((points[k].x() - lo.x()) * sx),
+                        h - pad - static_cast<int>((points[k].y() - lo.y()) * sy));
+      cv::circle(img, q, 3, c, cv::FILLED, cv::LINE_AA);
+    }
+    double rms = 0;
+    for (double v : r) rms += v * v;
+    rms = r.empty() ? 0 : std::sqrt(rms / r.size());
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "%s: rms %.4f mm", title.c_str(), rms);
+    cv::putText(img, buf, cv::Point(x0 + 10, 24), cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0), 1,
+                cv::LINE_AA);
+  };
+  panel(0, before, "height residual, as calibrated");
+  panel(w + 20, after, title_after);
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "x right, y up over the gauge; colour: -%.3f mm (blue) .. +%.3f mm (red)",
+                span, span);
+  cv::putText(img, buf, cv::Point(10, h + 28), cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0), 1,
+              cv::LINE_AA);
+  if (!cv::imwrite(path, img)) return DeviceError("cannot write " + path);
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status CheckDiagnoseMachineJob(const LoadedJob& job) {
+  DiagnoseMachineSpec spec;
+  hw::MachineConfig config;
+  return ReadSpec(job, &spec, &config);
+}
+
+Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& options) {
+  const auto wall_start = std::chrono::steady_clock::now();
+  DiagnoseMachineSpec spec;
+  hw::MachineConfig config;
+  INSITU_RETURN_IF_ERROR(ReadSpec(job, &spec, &config));
+  spec.scan.scan.binning = 1;
+  INSITU_ASSIGN_OR_RETURN(ScanMachine up, BringUp(job, spec.scan, config));
+  hw::Machine& machine = up.machine;
+  const calib::CalibrationSet& cal = up.calibration;
+  INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir));
+  auto finish = [&](bool ok, const std::string& error, StatusCode code = StatusCode::kFailedPrecondition) {
+    return FinishReport(report, ok, error, wall_start, options.out_dir, code);
+  };
+  auto log = Logger("job");
+  const StepGaugeSpec& gauge = spec.scan.gauge;
+
+  // The scans: one pass per stage height, every stripe centre binned along its line.
+  std::vector<Pass> passes;
+  std::vector<Observation> obs;
+  for (size_t p = 0; p < spec.stage_z_mm.size(); ++p) {
+    const double z = spec.stage_z_mm[p];
+    const Status moved = machine.stage->MoveTo(z);
+    if (!moved.ok()) return finish(false, "stage: " + moved.ToString(), moved.code());
+    PhaseProgress progress(options, "scan at stage " + std::to_string(z) + " mm", "lines",
+                           spec.scan.scan.line_count());
+    auto scanned = RunScan(machine, spec.scan.scan, spec.scan.extraction, cal,
+                           [&](int done, int) { progress.Update(done); }, options.cancel);
+    if (!scanned.ok()) return finish(false, scanned.status().ToString(), scanned.status().code());
+    Pass pass;
+    pass.stage_z_mm = z;
+    for (int i = 0; i < spec.scan.scan.line_count(); ++i) {
+      const double x = spec.scan.scan.line_x(i);
+      pass.lines.push_back({Vector3d(x, spec.scan.scan.y_start_mm, spec.scan.scan.focus_z_mm),
+                            Vector3d(x, spec.scan.scan.y_end_mm, spec.scan.scan.focus_z_mm)});
+    }
+    passes.push_back(pass);
+    // Bins along each line: the mean pixel of the points on one step within bin_mm of y.
+    std::map<std::tuple<int, int, int>, std::pair<Vector2d, int>> bins;
+    for (const geometry::CloudPoint& cp : scanned->cloud) {
+      const Vector3d q = cp.point_in_galvo.cast<double>() - Vector3d(0, 0, z);
+      const int step = CellModel::StepOf(gauge, q.head<2>());
+      if (step < 0) continue;
+      // The point must be on the step's top, not its side or the plate: within 1 mm.
+      if (std::abs(q.z() - gauge.base_z_mm - gauge.heights_mm[step]) > 1.0) continue;
+      const int bin = static_cast<int>(std::floor(q.y() / spec.bin_mm));
+      auto it = bins.try_emplace({cp.line, step, bin}, Vector2d::Zero(), 0).first;
+      auto& b = it->second;
+      b.first += Vector2d(cp.pixel_u, cp.pixel_v);
+      b.second += 1;
+    }
+    for (const auto& [key, b] : bins) {
+      if (b.second < 3) continue;
+      obs.push_back({b.first / b.second, static_cast<int>(p), std::get<0>(key), std::get<1>(key),
+                     std::get<2>(key), 0.0});
+    }
+    log->info("diagnose_machine: stage {} mm, {} points in {} bins", z, scanned->cloud.size(),
+              bins.size());
+  }
+  (void)machine.stage->MoveTo(0.0);
+  if (obs.size() < 50) {
+    return finish(false, "only " + std::to_string(obs.size()) +
+                             " binned points on the gauge's tops: is the gauge where artifact.center_mm "
+                             "says, and in the scan's x range?");
+  }
+  const bool two_heights = spec.stage_z_mm.size() >= 2;
+  const auto key_of = [&](const Observation& o) {
+    return KeyOf(passes[o.pass].stage_z_mm, spec.scan.scan.line_x(o.line), o.step, o.bin);
+  };
+  if (spec.record_baseline) {
+    // The machine as calibrated: its residuals, kept for every later diagnosis.
+    CellModel as_is(cal, gauge, passes, obs, two_heights);
+    std::vector<int> all(obs.size());
+    for (size_t k = 0; k < obs.size(); ++k) all[k] = static_cast<int>(k);
+    std::vector<double> r;
+    if (!as_is.Residuals(std::vector<double>(as_is.parameters(), 0.0), all, &r)) {
+      return finish(false, "baseline: the scan's rays miss their light planes");
+    }
+    std::string text =
+        "# insitu diagnose_machine baseline: height residuals of the machine as calibrated\n"
+        "# calibration: " + spec.scan.machine.calibration_path + "\n"
+        "stage_z_mm,line_x_mm,step,bin,residual_mm\n";
+    double ss = 0;
+    for (size_t k = 0; k < obs.size(); ++k) {
+      char line[160];
+      std::snprintf(line, sizeof line, "%s,%.6f\n", key_of(obs[k]).c_str(), r[k]);
+      text += line;
+      ss += r[k] * r[k];
+    }
+    const Status saved = WriteFileAtomically(spec.baseline_path, text);
+    if (!saved.ok()) return finish(false, "baseline: " + saved.ToString(), saved.code());
+    report.metrics["observations"] = static_cast<double>(obs.size());
+    report.metrics["baseline_rms_mm"] = std::sqrt(ss / obs.size());
+    report.artifacts["baseline"] = spec.baseline_path;
+    report.extra_json["cause"] = "[]";
+    report.extra_json["unexplained"] = "false";
+    log->info("diagnose_machine: baseline of {} bins recorded in {} ({:.1f} um rms)", obs.size(),
+              spec.baseline_path, 1e3 * std::sqrt(ss / obs.size()));
+    return finish(true, "");
+  }
+  {
+    std::ifstream in(spec.baseline_path);
+    if (!in) {
+      return finish(false, "no baseline at " + spec.baseline_path +
+                               ": run this job once right after calibrating, with "
+                               "--set diagnosis.record_baseline=true (what the calibration itself "
+                               "leaves is not a change of the machine)");
+    }
+    std::map<std::string, double> base;
+    std::string line;
+    int row = 0;
+    while (std::getline(in, line)) {
+      ++row;
+      if (line.empty() || line[0] == '#' || line.rfind("stage_z_mm", 0) == 0) continue;
+      const size_t comma = line.rfind(',');
+      char* end = nullptr;
+      const double v = comma == std::string::npos ? NAN : std::strtod(line.c_str() + comma + 1, &end);
+      if (!std::isfinite(v)) {
+        return finish(false, spec.baseline_path + ":" + std::to_string(row) +
+                                 ": expected stage_z_mm,line_x_mm,step,bin,residual_mm");
+      }
+      base[line.substr(0, comma)] = v;
+    }
+    std::vector<Observation> kept;
+    for (Observation o : obs) {
+      auto it = base.find(key_of(o));
+      if (it == base.end()) continue;
+      o.baseline_mm = it->second;
+      kept.push_back(o);
+    }
+    report.metrics["observations_without_baseline"] = static_cast<double>(obs.size() - kept.size());
+    if (kept.size() < obs.size() / 2) {
+      return finish(false, "only " + std::to_string(kept.size()) + " of " +
+                               std::to_string(obs.size()) + " binned points have a baseline in " +
+                               spec.baseline_path + ": was it recorded with this job's scan?");
+    }
+    obs = std::move(kept);
+  }
+  CellModel model(cal, gauge, passes, obs, two_heights);
+  // No nuisance: the heights of a level gauge standing on the plate do not depend on where on
+  // the plate it stands (its placement only decides which step a point is on, fixed above).
+  std::vector<fit::ParameterGroup> all_candidates = Candidates(two_heights);
+  fit::GroupSelectionOptions sel = spec.selection;
+  auto d = fit::DiagnoseGroups(model, {}, all_candidates, sel);
+  if (!d.ok()) return finish(false, "diagnosis: " + d.status().ToString(), d.status().code());
+
+  auto& m = report.metrics;
+  m["observations"] = static_cast<double>(obs.size());
+  m["passes"] = static_cast<double>(passes.size());
+  m["nominal_rms_mm"] = d->nominal_rms;
+  m["nominal_cv_rms_mm"] = d->nominal_cv_rms;
+  m["extended_rms_mm"] = d->extended_rms;
+  m["extended_cv_rms_mm"] = d->extended_cv_rms;
+  m["gain"] = d->gain;
+  for (const fit::GroupReport& g : d->groups) {
+    for (size_t k = 0; k < g.params.size(); ++k) m[g.name + "_" + g.params[k]] = g.values[k];
+  }
+  report.warnings.push_back(
+      "focus_scale (the dynamic focus travel) moves no chief ray: a scan cannot show it, and it "
+      "is not among the candidates");
+  if (!two_heights) {
+    report.warnings.push_back("one stage height: stage_scale cannot be seen (list two in "
+                              "diagnosis.stage_z_mm)");
+  }
+  nlohmann::ordered_json effects = nlohmann::ordered_json::array();
+  for (const fit::GroupReport& g : d->groups) effects.push_back(GroupJson(g));
+  nlohmann::ordered_json nominal = {{"rms_mm", d->nominal_rms}, {"cv_rms_mm", d->nominal_cv_rms}};
+  nlohmann::ordered_json extended = {{"rms_mm", d->extended_rms}, {"cv_rms_mm", d->extended_cv_rms}};
+  // Structure left: the extended residuals of neighbouring bins along a line still alike
+  // (lag-one correlation over every line). Speckle makes neighbouring 2 mm bins independent.
+  double num = 0, den = 0;
+  for (size_t k = 0; k + 1 < obs.size() && k + 1 < d->residual_extended.size(); ++k) {
+    if (obs[k].pass == obs[k + 1].pass && obs[k].line == obs[k + 1].line &&
+        obs[k].step == obs[k + 1].step) {
+      num += d->residual_extended[k] * d->residual_extended[k + 1];
+    }
+    den += d->residual_extended[k] * d->residual_extended[k];
+  }
+  const double lag1 = den > 0 ? num / den : 0.0;
+  const bool unexplained = lag1 > 0.5;
+  m["residual_lag1_correlation"] = lag1;
+  report.extra_json["n_points"] = std::to_string(obs.size());
+  report.extra_json["nominal"] = nominal.dump();
+  report.extra_json["effects"] = effects.dump();
+  report.extra_json["cause"] = nlohmann::ordered_json(d->cause).dump();
+  report.extra_json["extended"] = extended.dump();
+  report.extra_json["gain"] = nlohmann::ordered_json(d->gain).dump();
+  report.extra_json["unexplained"] = unexplained ? "true" : "false";
+  report.extra_json["notes"] = nlohmann::ordered_json(d->notes).dump();
+
+  // The plot: residual heights over the gauge, as calibrated and with the causes.
+  std::vector<int> all(obs.size());
+  for (size_t k = 0; k < obs.size(); ++k) all[k] = static_cast<int>(k);
+  std::vector<Vector3d> points;
+  if (model.Points(std::vector<double>(model.parameters(), 0.0), all, &points)) {
+    std::string after = "with the causes";
+    if (!d->cause.empty()) {
+      after += " (";
+      for (size_t k = 0; k < d->cause.size(); ++k) after += (k ? " + " : "") + d->cause[k];
+      after += ")";
+    }
+    const std::string png = (std::filesystem::path(options.out_dir) / "residuals.png").string();
+    if (SaveResidualMap(points, d->residual_nominal, d->residual_extended, after, png).ok()) {
+      report.artifacts["residuals"] = "residuals.png";
+    }
+  }
+  std::string summary = d->cause.empty() ? "the machine is as calibrated" : "cause:";
+  for (const std::string& c : d->cause) summary += " " + c;
+  log->info("diagnose_machine: {} ({:.1f} um held out as calibrated, {:.1f} um with the causes)",
+            summary, d->nominal_cv_rms * 1e3, d->extended_cv_rms * 1e3);
+  return finish(true, "");
+}
+
+}  // namespace insitu::job
