@@ -333,6 +333,12 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
   };
   auto log = Logger("job");
   const StepGaugeSpec& gauge = spec.scan.gauge;
+  if (!spec.record_baseline && !std::filesystem::exists(spec.baseline_path)) {
+    return finish(false, "no baseline at " + spec.baseline_path +
+                             ": run this job once right after calibrating, with "
+                             "--set diagnosis.record_baseline=true (what the calibration itself "
+                             "leaves is not a change of the machine)");
+  }
 
   // The scans: one pass per stage height, every stripe centre binned along its line.
   std::vector<Pass> passes;

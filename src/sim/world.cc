@@ -43,6 +43,7 @@ SimWorld::SimWorld(const WorldOptions& options)
       design_optics_(std::make_unique<ScanOptics>(options.scan_head.design)),
       camera_full_(std::make_unique<CameraModel>(options.camera)),
       exposure_us_(options.camera.exposure_ms * 1e3),
+      stage_commanded_z_(options.stage.z_mm),
       gain_db_(options.camera.gain_db) {
   camera_binned_ = std::make_unique<CameraModel>(options.camera);
   marks_ = std::make_unique<MarkMap>();
@@ -439,13 +440,19 @@ Status SimWorld::MoveStage(double z_mm) {
     return OutOfRange("stage z " + std::to_string(z_mm) + " mm is outside the travel [" +
                       std::to_string(st.min_z_mm) + ", " + std::to_string(st.max_z_mm) + "] mm");
   }
-  now_s_ += std::abs(z_mm - scene_->stage_z()) / st.speed_mm_per_s;
+  const double true_z = z_mm * (1.0 + st.scale_error_ppm * 1e-6);
+  now_s_ += std::abs(true_z - scene_->stage_z()) / st.speed_mm_per_s;
   PaceTo(now_s_);
-  scene_->set_stage_z(z_mm);
+  scene_->set_stage_z(true_z);
+  stage_commanded_z_ = z_mm;
   return Status::Ok();
 }
 
 double SimWorld::stage_z() const { return scene_->stage_z(); }
+double SimWorld::stage_commanded_z() const {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  return stage_commanded_z_;
+}
 
 Status SimWorld::SetExposure(double exposure_us) {
   std::lock_guard<std::recursive_mutex> lock(mutex_);

@@ -182,6 +182,9 @@ Status StageOptions::Validate() const {
     return InvalidValue("plate_marked_reflectance", "in [0, 1 / plate_albedo]",
                         plate_marked_reflectance);
   }
+  if (!(std::abs(scale_error_ppm) <= 1e5)) {
+    return InvalidValue("scale_error_ppm", "within +-100000", scale_error_ppm);
+  }
   return Status::Ok();
 }
 

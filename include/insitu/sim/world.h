@@ -126,7 +126,8 @@ class SimWorld {
 
   // Z stage.
   Status MoveStage(double z_mm);
-  double stage_z() const;
+  double stage_z() const;            // where the plate's top really is
+  double stage_commanded_z() const;  // what the stage reports (stage.scale_error_ppm)
 
   // The operator puts the calibration board at pose `index` of board.poses (modulo their
   // number). Errors: failed_precondition if the world has no board.
@@ -202,6 +203,7 @@ class SimWorld {
   std::optional<PointerProgram> pointer_;
   MirrorAngles rest_angles_;
   double exposure_us_;
+  double stage_commanded_z_;  // what the stage reports (stage.scale_error_ppm)
   double gain_db_;
   int binning_ = 1;
   uint64_t frame_counter_ = 0;

@@ -193,6 +193,10 @@ struct StageOptions {
   // Same depth law as the part's marked_reflectance.
   double plate_marked_reflectance = 4.0;
   double plate_size_mm = 400.0;
+  // The stage's travel against its commands (its leadscrew's pitch error), parts per million:
+  // commanded z lands at z (1 + scale_error_ppm 1e-6). Its encoder counts the same screw, so
+  // the position it reports is the commanded one.
+  double scale_error_ppm = 0.0;
 
   Status Validate() const;
 };

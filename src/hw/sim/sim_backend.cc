@@ -155,7 +155,7 @@ class SimStage : public Stage {
   explicit SimStage(std::shared_ptr<sim::SimWorld> world) : world_(std::move(world)) {}
   double min_z_mm() const override { return world_->options().stage.min_z_mm; }
   double max_z_mm() const override { return world_->options().stage.max_z_mm; }
-  Result<double> Position() const override { return world_->stage_z(); }
+  Result<double> Position() const override { return world_->stage_commanded_z(); }
   Status MoveTo(double z_mm) override {
     if (world_->options().faults.stage_stuck) {
       world_->Advance(10.0);
