@@ -101,7 +101,8 @@ TEST(FieldCalibrationJob, AsBuiltHeadIsMeasuredCorrectedAndUsed) {
   ASSERT_TRUE(set.ok()) << set.status().ToString();
   EXPECT_TRUE(set->head.measured);
   ASSERT_TRUE(testing::LastSimWorld());
-  const sim::ScanHeadOptions& sh = testing::LastSimWorld()->options().scan_head;
+  // A copy: later jobs replace the world the test keeps.
+  const sim::ScanHeadOptions sh = testing::LastSimWorld()->options().scan_head;
   optics::HeadModel truth;
   truth.design = sh.design;
   truth.built = sh.optics;
