@@ -23,10 +23,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::vector<std::string> With(std::vector<std::string> a, const std::vector<std::string>& b) {
-  a.insert(a.end(), b.begin(), b.end());
-  return a;
-}
+using testing::With;
 
 class DiagnoseMachine : public ::testing::Test {
  protected:

@@ -21,10 +21,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::vector<std::string> With(std::vector<std::string> a, const std::vector<std::string>& b) {
-  a.insert(a.end(), b.begin(), b.end());
-  return a;
-}
+using testing::With;
 
 void CalibrateMeasureAndGauge(const std::string& name, const std::vector<std::string>& world,
                               bool expect_error_before) {

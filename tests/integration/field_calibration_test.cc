@@ -35,10 +35,7 @@ using testing::KeepTheWorld;
 // -0.3 % lateral colour, the camera 6 mm from its drawing.
 const std::vector<std::string> kAsBuilt = {"world=../worlds/as_built.yaml"};
 
-std::vector<std::string> With(std::vector<std::string> a, const std::vector<std::string>& b) {
-  a.insert(a.end(), b.begin(), b.end());
-  return a;
-}
+using testing::With;
 
 std::string Slurp(const std::string& path) {
   std::ifstream f(path);

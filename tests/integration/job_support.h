@@ -28,6 +28,12 @@ inline void KeepTheWorld() {
   });
 }
 
+// `a` followed by `b`: a job's --set overrides built up from shared ones.
+inline std::vector<std::string> With(std::vector<std::string> a, const std::vector<std::string>& b) {
+  a.insert(a.end(), b.begin(), b.end());
+  return a;
+}
+
 inline std::string JobFile(const std::string& name) {
   return std::string(INSITU_SOURCE_DIR) + "/config/jobs/" + name;
 }
