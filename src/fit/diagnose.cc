@@ -2,17 +2,17 @@
 
 #include <algorithm>
 #include <atomic>
-#include <functional>
-#include <optional>
-#include <thread>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <numeric>
+#include <optional>
 #include <random>
+#include <thread>
 
 #include "insitu/fit/effects.h"
 #include "insitu/fit/model_fit.h"
@@ -144,7 +144,6 @@ std::string Describe(const std::string& name) {
 // frame's as the head's.
 constexpr const char* kHeadGeometry = "head_geometry";
 
-
 bool IsHeadTerm(const std::string& name) {
   return name == "offset" || name == "scale" || name == "skew" || name == "mirror_separation" ||
          name == "lens_radial";
@@ -239,10 +238,12 @@ Result<Diagnosis> Diagnose(const FieldData& data, const DiagnoseOptions& o) {
     if (e->name() == kHeadGeometry) head = e.get();
   }
   bool head_tried = false;
-  while (static_cast<int>(current.size()) < o.max_effects) {
-    // The physical head in place of its leading-order terms, once they have entered.
-    if (head != nullptr && !head_tried && HasLeadingHeadTerm(current)) {
-      head_tried = true;
+  // The physical head in place of its leading-order terms, once they have entered: true when
+  // it took their place.
+  const auto try_head = [&]() -> bool {
+    if (head == nullptr || head_tried || !HasLeadingHeadTerm(current)) return false;
+    head_tried = true;
+    {
       std::vector<const Effect*> trial;
       std::vector<EffectReport> reports;
       bool placed = false;
@@ -273,8 +274,8 @@ Result<Diagnosis> Diagnose(const FieldData& data, const DiagnoseOptions& o) {
         const double trial_bic = Bic(r->rss_mm2, m, r->parameters);
         auto trial_cv = CrossValidatedRms(data, trial, fold_of, folds);
         if (!trial_cv.ok()) {
-          d.notes.push_back(std::string(kHeadGeometry) + ": held-out fit: " +
-                            trial_cv.status().message());
+          d.notes.push_back(std::string(kHeadGeometry) +
+                            ": held-out fit: " + trial_cv.status().message());
         } else if (trial_bic < bic && *trial_cv <= cv) {
           for (size_t k = 0; k < trial.size(); ++k) {
             if (trial[k] == head) reports[k] = Entered(*head, trial_bic - bic, *trial_cv);
@@ -284,15 +285,21 @@ Result<Diagnosis> Diagnose(const FieldData& data, const DiagnoseOptions& o) {
           bic = trial_bic;
           cv = *trial_cv;
           best_fit = *r;
-          continue;
+          return true;
         } else {
-          d.notes.push_back(std::string(kHeadGeometry) + " in place of its leading-order terms: "
-                            "BIC " + std::to_string(trial_bic - bic) + ", held-out " +
+          d.notes.push_back(std::string(kHeadGeometry) +
+                            " in place of its leading-order terms: "
+                            "BIC " +
+                            std::to_string(trial_bic - bic) + ", held-out " +
                             std::to_string(*trial_cv) + " mm against " + std::to_string(cv) +
                             " mm: kept the leading-order terms");
         }
       }
     }
+    return false;
+  };
+  while (static_cast<int>(current.size()) < o.max_effects) {
+    if (try_head()) continue;
     // Every candidate fitted jointly with the model so far, best BIC first.
     struct Candidate {
       const Effect* effect;
@@ -409,6 +416,8 @@ Result<Diagnosis> Diagnose(const FieldData& data, const DiagnoseOptions& o) {
     cv = pair_cv;
     best_fit = pair->fit;
   }
+  // The head is tried even when the model filled up before a distortion term entered last.
+  try_head();
   // The extended model's parameters, from the final joint fit.
   for (size_t k = 0; k < d.effects.size(); ++k) {
     d.effects[k].params = best_fit.effects[k].params;

@@ -60,10 +60,11 @@ void CentreBounds(const FieldData& data, int x0_index, std::vector<double>* lo,
     a = a.cwiseMin(p.cmd);
     b = b.cwiseMax(p.cmd);
   }
-  (*lo)[x0_index] = std::min(a.x(), -b.x());
-  (*hi)[x0_index] = std::max(b.x(), -a.x());
-  (*lo)[x0_index + 1] = std::min(a.y(), -b.y());
-  (*hi)[x0_index + 1] = std::max(b.y(), -a.y());
+  // A field of one line (every x the same) still leaves its centre some room: 1 mm.
+  (*lo)[x0_index] = std::min({a.x(), -b.x(), -1.0});
+  (*hi)[x0_index] = std::max({b.x(), -a.x(), 1.0});
+  (*lo)[x0_index + 1] = std::min({a.y(), -b.y(), -1.0});
+  (*hi)[x0_index + 1] = std::max({b.y(), -a.y(), 1.0});
 }
 
 Vector2d Centroid(const FieldData& data) {
@@ -388,6 +389,9 @@ class HeadGeometryEffect : public Effect {
                    Vector2d(t[kGx] * c.x(), t[kGy] * c.y());
         mean += rest[j];
       }
+      // What is left about its mean (the free offset): the f that leaves least starts.
+      if (!rest.empty()) mean /= static_cast<double>(rest.size());
+      for (const Vector2d& r : rest) ss += (r - mean).squaredNorm();
       if (ss < best) {
         best = ss;
         q = t;

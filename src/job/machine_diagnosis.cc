@@ -174,8 +174,7 @@ class CellModel : public fit::GroupModel {
     const Vector3d shift(theta[Begin(kGalvoOffset)], theta[Begin(kGalvoOffset) + 1], 0.0);
     const double tilt = theta[Begin(kLightPlane)] * 1e-3;
     const double pupil = theta[Begin(kLightPlane) + 1];  // mm of exit pupil height
-    // Chief rays lean by x / L from a pupil L above the field; L + dL leans them by
-    // -x dL / L^2 more.
+    // Chief rays lean by x / L from a pupil L above the field; from L + dL by x dL / L^2 less.
     const double height = cal_.head.measured ? cal_.head.model.built.exit_pupil_height_mm
                                              : cal_.galvo.pivot_height_mm;
     std::map<std::pair<int, int>, Eigen::Vector4d> planes;
@@ -193,7 +192,8 @@ class CellModel : public fit::GroupModel {
             geometry::LineLightPlane(cal_, a, b, 20.0, Eigen::Isometry3d::Identity());
         Vector3d n = p.coeffs.head<3>();
         double d = p.coeffs[3];
-        const double lean = tilt - a.x() * pupil / (height * height);
+        // The plane's normal ~ (L, 0, x): a pupil dL higher turns it by +x dL / L^2 about +y.
+        const double lean = tilt + a.x() * pupil / (height * height);
         if (lean != 0.0) {
           // Turned about the line (along y through the line's commanded position, z = 0).
           const Vector3d on(a.x(), 0.0, a.z());
@@ -417,7 +417,15 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
     report.metrics["observations"] = static_cast<double>(obs.size());
     report.metrics["baseline_rms_mm"] = std::sqrt(ss / obs.size());
     report.artifacts["baseline"] = spec.baseline_path;
+    // The diagnose keys, for the machine as calibrated: nothing to explain by definition.
+    const double rms = std::sqrt(ss / obs.size());
+    const nlohmann::ordered_json as_is_json = {{"rms_mm", rms}, {"cv_rms_mm", rms}};
+    report.extra_json["n_points"] = std::to_string(obs.size());
+    report.extra_json["nominal"] = as_is_json.dump();
+    report.extra_json["effects"] = "[]";
     report.extra_json["cause"] = "[]";
+    report.extra_json["extended"] = as_is_json.dump();
+    report.extra_json["gain"] = "1";
     report.extra_json["unexplained"] = "false";
     log->info("diagnose_machine: baseline of {} bins recorded in {} ({:.1f} um rms)", obs.size(),
               spec.baseline_path, 1e3 * std::sqrt(ss / obs.size()));
@@ -440,7 +448,8 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
       const size_t comma = line.rfind(',');
       char* end = nullptr;
       const double v = comma == std::string::npos ? NAN : std::strtod(line.c_str() + comma + 1, &end);
-      if (!std::isfinite(v)) {
+      const bool whole = end != nullptr && std::string(end).find_first_not_of(" \t\r") == std::string::npos;
+      if (!std::isfinite(v) || !whole || std::count(line.begin(), line.end(), ',') != 4) {
         return finish(false, spec.baseline_path + ":" + std::to_string(row) +
                                  ": expected stage_z_mm,line_x_mm,step,bin,residual_mm");
       }

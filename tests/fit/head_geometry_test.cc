@@ -6,6 +6,7 @@
 // bar) and recover the head's parameters within their standard errors.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -80,6 +81,9 @@ void ExpectNamedExplainedAndRecovered(const Head& head, double half_mm, double s
   const EffectReport* hg = Find(*d, "head_geometry");
   ASSERT_NE(hg, nullptr);
   for (const auto& [name, truth] : Truth(head)) {
+    ASSERT_NE(std::find(hg->param_names.begin(), hg->param_names.end(), name),
+              hg->param_names.end())
+        << name;
     for (size_t k = 0; k < hg->param_names.size(); ++k) {
       if (hg->param_names[k] != name) continue;
       const double v = hg->params[k], se = hg->stderrs[k];

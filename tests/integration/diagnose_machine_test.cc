@@ -42,12 +42,15 @@ class DiagnoseMachine : public ::testing::Test {
     ASSERT_TRUE(fs::exists(dir_ / "diagnose_baseline.csv"));
   }
 
-  // The causes named after the world changes `sets` (and a fresh noise seed).
-  static std::vector<std::string> Causes(const std::string& name, std::vector<std::string> sets) {
+  // The causes named after the world changes `sets` (and a fresh noise seed); `effects`, when
+  // given, receives the report's effects.
+  static std::vector<std::string> Causes(const std::string& name, std::vector<std::string> sets,
+                                         nlohmann::json* effects = nullptr) {
     sets.push_back("machine.calibration=" + cal_);
     auto r = testing::RunShippedJob("diagnose_machine.yaml", sets, (dir_ / name).string());
     EXPECT_TRUE(r.ok()) << r.status().ToString();
     if (!r.ok()) return {"<failed>"};
+    if (effects != nullptr) *effects = nlohmann::json::parse(r->extra_json.at("effects"));
     const auto cause = nlohmann::json::parse(r->extra_json.at("cause"));
     std::printf("%s: cause %s, held out %.1f -> %.1f um\n", name.c_str(), cause.dump().c_str(),
                 1e3 * r->metrics["nominal_cv_rms_mm"], 1e3 * r->metrics["extended_cv_rms_mm"]);
@@ -84,10 +87,25 @@ TEST_F(DiagnoseMachine, EachChangeIsNamedFirst) {
   };
   int seed = 20;
   for (const Case& c : cases) {
+    nlohmann::json effects;
     const std::vector<std::string> causes =
-        Causes(c.name, With(c.sets, {"world.seed=" + std::to_string(seed++)}));
+        Causes(c.name, With(c.sets, {"world.seed=" + std::to_string(seed++)}), &effects);
     ASSERT_FALSE(causes.empty()) << c.name;
     EXPECT_EQ(causes.front(), c.effect) << c.name;
+    if (c.effect == "light_plane") {
+      // The sign and size of what changed: the pupil 20 mm higher. The model leans the planes
+      // to first order in x / L and leaves out the pupil's aberration (3 % at 0.2 rad), so
+      // within a factor of 2, not within its standard error.
+      const double pupil = effects[0]["params"]["pupil_mm"].get<double>();
+      EXPECT_GT(pupil, 10.0);
+      EXPECT_LT(pupil, 40.0);
+    }
+    if (c.effect == "stage_scale") {
+      // 8 per mille; the stage's travel is exactly linear in the simulator: 3 standard errors.
+      const double s = effects[0]["params"]["s_permille"].get<double>();
+      const double se = effects[0]["stderr"]["s_permille"].get<double>();
+      EXPECT_NEAR(s, 8.0, 3.0 * se);
+    }
   }
 }
 
