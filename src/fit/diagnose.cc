@@ -298,126 +298,130 @@ Result<Diagnosis> Diagnose(const FieldData& data, const DiagnoseOptions& o) {
     }
     return false;
   };
-  while (static_cast<int>(current.size()) < o.max_effects) {
-    if (try_head()) continue;
-    // Every candidate fitted jointly with the model so far, best BIC first.
-    struct Candidate {
-      const Effect* effect;
-      double bic;
-      FitResult fit;
-    };
-    std::vector<Candidate> candidates;
-    std::vector<const Effect*> tried;
-    for (const auto& e : library) {
-      if (!e->Applicable(data) || e.get() == head) continue;
-      if (std::find(current.begin(), current.end(), e.get()) != current.end()) continue;
-      // The head's own terms are not added beside it: it holds them.
-      if (std::find(current.begin(), current.end(), head) != current.end() &&
-          IsHeadTerm(e->name())) {
-        continue;
+  // Forward selection of the library's terms; then the physical head in place of the
+  // leading-order ones it holds, judged against the completed leading-order model (tried
+  // earlier, its tilts would stand in for a rotation not yet entered), and if it takes their
+  // place, selection goes on from there.
+  for (int round = 0; round < 2; ++round) {
+    while (static_cast<int>(current.size()) < o.max_effects) {
+      // Every candidate fitted jointly with the model so far, best BIC first.
+      struct Candidate {
+        const Effect* effect;
+        double bic;
+        FitResult fit;
+      };
+      std::vector<Candidate> candidates;
+      std::vector<const Effect*> tried;
+      for (const auto& e : library) {
+        if (!e->Applicable(data) || e.get() == head) continue;
+        if (std::find(current.begin(), current.end(), e.get()) != current.end()) continue;
+        // The head's own terms are not added beside it: it holds them.
+        if (std::find(current.begin(), current.end(), head) != current.end() &&
+            IsHeadTerm(e->name())) {
+          continue;
+        }
+        const int params = best_fit.parameters + static_cast<int>(e->param_names().size());
+        if (params + 1 > m) continue;  // too few points for this model
+        tried.push_back(e.get());
       }
-      const int params = best_fit.parameters + static_cast<int>(e->param_names().size());
-      if (params + 1 > m) continue;  // too few points for this model
-      tried.push_back(e.get());
-    }
-    // The candidates' fits are independent: spread over the cores. The model so far starts
-    // where it was fitted; each candidate from its own start.
-    FitOptions warm;
-    for (const EffectFit& f : best_fit.effects) warm.start.push_back(f.params);
-    std::vector<std::optional<Result<FitResult>>> fits(tried.size());
-    ParallelFor(static_cast<int>(tried.size()), [&](int k) {
-      std::vector<const Effect*> trial = current;
-      trial.push_back(tried[k]);
-      fits[k] = FitEffects(data, trial, {}, warm);
-    });
-    for (size_t k = 0; k < tried.size(); ++k) {
-      const Result<FitResult>& r = *fits[k];
-      if (!r.ok()) {
-        d.notes.push_back(tried[k]->name() + ": " + r.status().message());
-        continue;
-      }
-      candidates.push_back({tried[k], Bic(r->rss_mm2, m, r->parameters), *r});
-    }
-    std::sort(candidates.begin(), candidates.end(),
-              [](const Candidate& a, const Candidate& b) { return a.bic < b.bic; });
-    // The strongest candidate that the held-out points confirm enters; a candidate whose
-    // held-out fits fail (a fold that cannot pin its parameters) gives way to the next.
-    const Candidate* taken = nullptr;
-    double taken_cv = cv;
-    for (const Candidate& c : candidates) {
-      if (bic - c.bic < o.min_delta_bic) break;
-      std::vector<const Effect*> trial = current;
-      trial.push_back(c.effect);
-      auto trial_cv = CrossValidatedRms(data, trial, fold_of, folds);
-      if (!trial_cv.ok()) {
-        d.notes.push_back(c.effect->name() + ": held-out fit: " + trial_cv.status().message());
-        continue;
-      }
-      if (!(*trial_cv < (1.0 - o.min_cv_improvement) * cv)) {
-        d.notes.push_back(c.effect->name() + " lowers BIC by " + std::to_string(bic - c.bic) +
-                          " but the held-out error only from " + std::to_string(cv) + " to " +
-                          std::to_string(*trial_cv) + " mm: not a cause");
-        continue;
-      }
-      taken = &c;
-      taken_cv = *trial_cv;
-      break;
-    }
-    if (taken != nullptr) {
-      d.effects.push_back(Entered(*taken->effect, taken->bic - bic, taken_cv));
-      current.push_back(taken->effect);
-      bic = taken->bic;
-      cv = taken_cv;
-      best_fit = taken->fit;
-      continue;
-    }
-    // Two effects of similar size: neither alone removes much of what both do. Pairs of the
-    // strongest candidates are tried jointly under the same tests (BIC, held-out error).
-    if (static_cast<int>(current.size()) + 2 > o.max_effects) break;
-    const size_t top = std::min<size_t>(candidates.size(), 4);
-    struct Pair {
-      const Candidate* a;
-      const Candidate* b;
-      double bic;
-      FitResult fit;
-    };
-    std::vector<Pair> pairs;
-    for (size_t i = 0; i < top; ++i) {
-      for (size_t j = i + 1; j < top; ++j) {
+      // The candidates' fits are independent: spread over the cores. The model so far starts
+      // where it was fitted; each candidate from its own start.
+      FitOptions warm;
+      for (const EffectFit& f : best_fit.effects) warm.start.push_back(f.params);
+      std::vector<std::optional<Result<FitResult>>> fits(tried.size());
+      ParallelFor(static_cast<int>(tried.size()), [&](int k) {
         std::vector<const Effect*> trial = current;
-        trial.push_back(candidates[i].effect);
-        trial.push_back(candidates[j].effect);
-        auto r = FitEffects(data, trial);
-        if (!r.ok()) continue;
-        pairs.push_back({&candidates[i], &candidates[j], Bic(r->rss_mm2, m, r->parameters), *r});
+        trial.push_back(tried[k]);
+        fits[k] = FitEffects(data, trial, {}, warm);
+      });
+      for (size_t k = 0; k < tried.size(); ++k) {
+        const Result<FitResult>& r = *fits[k];
+        if (!r.ok()) {
+          d.notes.push_back(tried[k]->name() + ": " + r.status().message());
+          continue;
+        }
+        candidates.push_back({tried[k], Bic(r->rss_mm2, m, r->parameters), *r});
       }
+      std::sort(candidates.begin(), candidates.end(),
+                [](const Candidate& a, const Candidate& b) { return a.bic < b.bic; });
+      // The strongest candidate that the held-out points confirm enters; a candidate whose
+      // held-out fits fail (a fold that cannot pin its parameters) gives way to the next.
+      const Candidate* taken = nullptr;
+      double taken_cv = cv;
+      for (const Candidate& c : candidates) {
+        if (bic - c.bic < o.min_delta_bic) break;
+        std::vector<const Effect*> trial = current;
+        trial.push_back(c.effect);
+        auto trial_cv = CrossValidatedRms(data, trial, fold_of, folds);
+        if (!trial_cv.ok()) {
+          d.notes.push_back(c.effect->name() + ": held-out fit: " + trial_cv.status().message());
+          continue;
+        }
+        if (!(*trial_cv < (1.0 - o.min_cv_improvement) * cv)) {
+          d.notes.push_back(c.effect->name() + " lowers BIC by " + std::to_string(bic - c.bic) +
+                            " but the held-out error only from " + std::to_string(cv) + " to " +
+                            std::to_string(*trial_cv) + " mm: not a cause");
+          continue;
+        }
+        taken = &c;
+        taken_cv = *trial_cv;
+        break;
+      }
+      if (taken != nullptr) {
+        d.effects.push_back(Entered(*taken->effect, taken->bic - bic, taken_cv));
+        current.push_back(taken->effect);
+        bic = taken->bic;
+        cv = taken_cv;
+        best_fit = taken->fit;
+        continue;
+      }
+      // Two effects of similar size: neither alone removes much of what both do. Pairs of the
+      // strongest candidates are tried jointly under the same tests (BIC, held-out error).
+      if (static_cast<int>(current.size()) + 2 > o.max_effects) break;
+      const size_t top = std::min<size_t>(candidates.size(), 4);
+      struct Pair {
+        const Candidate* a;
+        const Candidate* b;
+        double bic;
+        FitResult fit;
+      };
+      std::vector<Pair> pairs;
+      for (size_t i = 0; i < top; ++i) {
+        for (size_t j = i + 1; j < top; ++j) {
+          std::vector<const Effect*> trial = current;
+          trial.push_back(candidates[i].effect);
+          trial.push_back(candidates[j].effect);
+          auto r = FitEffects(data, trial);
+          if (!r.ok()) continue;
+          pairs.push_back({&candidates[i], &candidates[j], Bic(r->rss_mm2, m, r->parameters), *r});
+        }
+      }
+      std::sort(pairs.begin(), pairs.end(),
+                [](const Pair& x, const Pair& y) { return x.bic < y.bic; });
+      const Pair* pair = nullptr;
+      double pair_cv = cv;
+      for (const Pair& pr : pairs) {
+        if (bic - pr.bic < 2 * o.min_delta_bic) break;
+        std::vector<const Effect*> trial = current;
+        trial.push_back(pr.a->effect);
+        trial.push_back(pr.b->effect);
+        auto trial_cv = CrossValidatedRms(data, trial, fold_of, folds);
+        if (!trial_cv.ok() || !(*trial_cv < (1.0 - o.min_cv_improvement) * cv)) continue;
+        pair = &pr;
+        pair_cv = *trial_cv;
+        break;
+      }
+      if (pair == nullptr) break;
+      for (const Candidate* c : {pair->a, pair->b}) {
+        d.effects.push_back(Entered(*c->effect, pair->bic - bic, pair_cv));  // BIC of the pair
+        current.push_back(c->effect);
+      }
+      bic = pair->bic;
+      cv = pair_cv;
+      best_fit = pair->fit;
     }
-    std::sort(pairs.begin(), pairs.end(),
-              [](const Pair& x, const Pair& y) { return x.bic < y.bic; });
-    const Pair* pair = nullptr;
-    double pair_cv = cv;
-    for (const Pair& pr : pairs) {
-      if (bic - pr.bic < 2 * o.min_delta_bic) break;
-      std::vector<const Effect*> trial = current;
-      trial.push_back(pr.a->effect);
-      trial.push_back(pr.b->effect);
-      auto trial_cv = CrossValidatedRms(data, trial, fold_of, folds);
-      if (!trial_cv.ok() || !(*trial_cv < (1.0 - o.min_cv_improvement) * cv)) continue;
-      pair = &pr;
-      pair_cv = *trial_cv;
-      break;
-    }
-    if (pair == nullptr) break;
-    for (const Candidate* c : {pair->a, pair->b}) {
-      d.effects.push_back(Entered(*c->effect, pair->bic - bic, pair_cv));  // BIC of the pair
-      current.push_back(c->effect);
-    }
-    bic = pair->bic;
-    cv = pair_cv;
-    best_fit = pair->fit;
+    if (round == 1 || !try_head()) break;
   }
-  // The head is tried even when the model filled up before a distortion term entered last.
-  try_head();
   // The extended model's parameters, from the final joint fit.
   for (size_t k = 0; k < d.effects.size(); ++k) {
     d.effects[k].params = best_fit.effects[k].params;
