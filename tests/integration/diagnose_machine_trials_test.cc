@@ -1,0 +1,135 @@
+// The whole cell's diagnosis in randomised trials (slow, ~6 minutes): after the default cell is
+// calibrated and its baseline recorded, each machine change is hidden in the world at a random
+// size and sign, ten times, with fresh noise each time, and must be named first in at least 9
+// of 10; the unchanged cell must name nothing in 10 of 10.
+//
+// Sizes: the gauge's binned heights scatter by ~13 um about the baseline. Each range is chosen
+// from single runs (tests/integration/diagnose_machine_test.cc) so that the change moves the
+// heights by about 3 to 10 times that, rms: a few times the noise to many times.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <functional>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "integration/job_support.h"
+
+namespace insitu {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string Num(double v) {
+  char b[48];
+  std::snprintf(b, sizeof b, "%.6g", v);
+  return b;
+}
+
+class DiagnoseMachineTrials : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    testing::KeepTheWorld();
+    dir_ = fs::temp_directory_path() / "insitu_diagnose_machine_trials";
+    fs::remove_all(dir_);
+    cal_ = (dir_ / "machine.yaml").string();
+    ASSERT_TRUE(testing::QuickCalibrate(cal_, (dir_ / "calibrate").string()).ok());
+    ASSERT_TRUE(testing::RunShippedJob("diagnose_machine.yaml",
+                                       {"machine.calibration=" + cal_,
+                                        "diagnosis.record_baseline=true"},
+                                       (dir_ / "baseline").string())
+                    .ok());
+  }
+  static std::vector<std::string> Causes(std::vector<std::string> sets) {
+    sets.push_back("machine.calibration=" + cal_);
+    auto r = testing::RunShippedJob("diagnose_machine.yaml", sets, (dir_ / "trial").string());
+    if (!r.ok()) return {"<failed: " + r.status().ToString() + ">"};
+    return nlohmann::json::parse(r->extra_json.at("cause")).get<std::vector<std::string>>();
+  }
+  static fs::path dir_;
+  static std::string cal_;
+};
+fs::path DiagnoseMachineTrials::dir_;
+std::string DiagnoseMachineTrials::cal_;
+
+struct Hidden {
+  std::string effect;
+  // The world change for a draw from the generator.
+  std::function<std::vector<std::string>(std::mt19937&)> change;
+};
+
+double Uniform(std::mt19937& rng, double lo, double hi) {
+  return std::uniform_real_distribution<double>(lo, hi)(rng);
+}
+double Sign(std::mt19937& rng) { return Uniform(rng, 0, 1) < 0.5 ? -1.0 : 1.0; }
+
+TEST_F(DiagnoseMachineTrials, EachHiddenChangeIsNamedFirstIn9Of10) {
+  const std::vector<Hidden> hidden = {
+      // The camera's aim moved 0.15-0.6 mm in any direction (a bump).
+      {"camera_pose",
+       [](std::mt19937& rng) {
+         const double a = Uniform(rng, 0, 2 * M_PI), r = Uniform(rng, 0.15, 0.6);
+         return std::vector<std::string>{"world.camera.look_at_mm=[" + Num(0.6 + r * std::cos(a)) +
+                                         "," + Num(-0.4 + r * std::sin(a)) + ",0.0]"};
+       }},
+      // Another objective: focal length 1.1-3.6 mm off (0.4-1.4 %).
+      {"head_scale",
+       [](std::mt19937& rng) {
+         return std::vector<std::string>{"world.scan_head.optics.focal_length_mm=" +
+                                         Num(255.0 + Sign(rng) * Uniform(rng, 1.1, 3.6))};
+       }},
+      // The X mirror's zero 0.07-0.25 mrad off (18-64 um).
+      {"galvo_offset",
+       [](std::mt19937& rng) {
+         return std::vector<std::string>{"world.scan_head.x_zero_offset_mrad=" +
+                                         Num(Sign(rng) * Uniform(rng, 0.07, 0.25))};
+       }},
+      // The exit pupil 45-150 mm higher or lower.
+      {"light_plane",
+       [](std::mt19937& rng) {
+         return std::vector<std::string>{"world.scan_head.optics.exit_pupil_height_mm=" +
+                                         Num(310.0 + Sign(rng) * Uniform(rng, 45.0, 150.0))};
+       }},
+      // The stage's screw 1.5-5 % off.
+      {"stage_scale",
+       [](std::mt19937& rng) {
+         return std::vector<std::string>{"world.stage.scale_error_ppm=" +
+                                         Num(Sign(rng) * Uniform(rng, 15000.0, 50000.0))};
+       }},
+  };
+  std::mt19937 rng(2026);
+  int seed = 100;
+  for (const Hidden& h : hidden) {
+    int first = 0;
+    std::string misses;
+    for (int t = 0; t < 10; ++t) {
+      std::vector<std::string> sets = h.change(rng);
+      sets.push_back("world.seed=" + std::to_string(seed++));
+      const std::vector<std::string> causes = Causes(sets);
+      if (!causes.empty() && causes.front() == h.effect) {
+        ++first;
+      } else {
+        misses += " [" + sets.front() + " -> " + (causes.empty() ? "nothing" : causes.front()) + "]";
+      }
+    }
+    std::printf("%s named first in %d of 10%s\n", h.effect.c_str(), first, misses.c_str());
+    EXPECT_GE(first, 9) << h.effect << misses;
+  }
+}
+
+TEST_F(DiagnoseMachineTrials, TheUnchangedCellNamesNothingIn10Of10) {
+  int clean = 0;
+  for (int t = 0; t < 10; ++t) {
+    if (Causes({"world.seed=" + std::to_string(200 + t)}).empty()) ++clean;
+  }
+  std::printf("unchanged: nothing named in %d of 10\n", clean);
+  EXPECT_EQ(clean, 10);
+}
+
+}  // namespace
+}  // namespace insitu
