@@ -2,12 +2,14 @@
 // public headers).
 #pragma once
 
+#include <ceres/ceres.h>
+
 #include <Eigen/Core>
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <vector>
-#include <ceres/ceres.h>
 
 namespace insitu::fit {
 
@@ -24,6 +26,12 @@ inline ceres::Solver::Options PreciseLmOptions(int max_iterations) {
   so.gradient_tolerance = 1e-16;
   so.logging_type = ceres::SILENT;
   return so;
+}
+
+// The Bayesian information criterion of a least-squares fit: m residual components, p
+// parameters, residual sum of squares rss.
+inline double Bic(double rss, int m, int p) {
+  return m * std::log(std::max(rss, 1e-300) / m) + p * std::log(static_cast<double>(m));
 }
 
 // A Jacobian Ceres returned in compressed rows, as a dense matrix.

@@ -16,6 +16,7 @@
 
 #include "insitu/fit/effects.h"
 #include "insitu/fit/model_fit.h"
+#include "fit/ceres_support.h"
 
 namespace insitu::fit {
 namespace {
@@ -65,10 +66,6 @@ double RegularisedBeta(double a, double b, double x) {
 double FTail(double f, double d1, double d2) {
   if (!(f > 0)) return 1.0;
   return RegularisedBeta(0.5 * d2, 0.5 * d1, d2 / (d2 + d1 * f));
-}
-
-double Bic(double rss, int m, int p) {
-  return m * std::log(std::max(rss, 1e-300) / m) + p * std::log(static_cast<double>(m));
 }
 
 struct Model {

@@ -26,7 +26,8 @@ struct Layout {
 Layout MakeLayout(const std::vector<ParameterGroup>& all) {
   Layout l;
   l.begin.push_back(0);
-  for (const ParameterGroup& g : all) l.begin.push_back(l.begin.back() + static_cast<int>(g.params.size()));
+  for (const ParameterGroup& g : all)
+    l.begin.push_back(l.begin.back() + static_cast<int>(g.params.size()));
   return l;
 }
 
@@ -37,7 +38,11 @@ class GroupCost : public ceres::CostFunction {
  public:
   GroupCost(const GroupModel& model, const std::vector<int>& use, std::vector<int> active,
             std::vector<double> scale, int total)
-      : model_(model), use_(use), active_(std::move(active)), scale_(std::move(scale)), total_(total) {
+      : model_(model),
+        use_(use),
+        active_(std::move(active)),
+        scale_(std::move(scale)),
+        total_(total) {
     set_num_residuals(static_cast<int>(use_.size()));
     mutable_parameter_block_sizes()->push_back(static_cast<int>(active_.size()));
   }
@@ -80,8 +85,8 @@ class GroupCost : public ceres::CostFunction {
 };
 
 struct GroupFit {
-  std::vector<double> theta;   // all parameters (inactive 0)
-  std::vector<double> se;  // standard errors, all parameters (inactive NaN)
+  std::vector<double> theta;  // all parameters (inactive 0)
+  std::vector<double> se;     // standard errors, all parameters (inactive NaN)
   double rss = 0.0;
   int residuals = 0, parameters = 0;
 };
@@ -109,7 +114,8 @@ Result<GroupFit> Fit(const GroupModel& model, const std::vector<ParameterGroup>&
     f.se.assign(layout.total(), kNaN);
     f.residuals = m;
     std::vector<double> r;
-    if (!model.Residuals(f.theta, use, &r)) return FailedPrecondition("the model cannot be evaluated");
+    if (!model.Residuals(f.theta, use, &r))
+      return FailedPrecondition("the model cannot be evaluated");
     for (double v : r) f.rss += v * v;
     return f;
   }
@@ -135,7 +141,8 @@ Result<GroupFit> Fit(const GroupModel& model, const std::vector<ParameterGroup>&
   std::vector<double> jrow(static_cast<size_t>(m) * p);
   double* jp = jrow.data();
   const double* zp = z.data();
-  if (!cost->Evaluate(&zp, r.data(), &jp)) return FailedPrecondition("the fitted model cannot be evaluated");
+  if (!cost->Evaluate(&zp, r.data(), &jp))
+    return FailedPrecondition("the fitted model cannot be evaluated");
   for (int i = 0; i < m; ++i) {
     f.rss += r[i] * r[i];
     for (int k = 0; k < p; ++k) jac(i, k) = jrow[static_cast<size_t>(i) * p + k];
@@ -145,10 +152,6 @@ Result<GroupFit> Fit(const GroupModel& model, const std::vector<ParameterGroup>&
     for (int k = 0; k < p; ++k) f.se[active[k]] = scale[k] * se[k];
   }
   return f;
-}
-
-double Bic(double rss, int m, int p) {
-  return m * std::log(std::max(rss, 1e-300) / m) + p * std::log(static_cast<double>(m));
 }
 
 }  // namespace
@@ -176,7 +179,8 @@ Result<GroupDiagnosis> DiagnoseGroups(const GroupModel& model,
       return InvalidArgument("group " + g.name + ": needs parameters, one scale each");
     }
     for (double s : g.scale) {
-      if (!(s > 0) || !std::isfinite(s)) return InvalidArgument("group " + g.name + ": scale must be > 0");
+      if (!(s > 0) || !std::isfinite(s))
+        return InvalidArgument("group " + g.name + ": scale must be > 0");
     }
   }
   const Layout layout = MakeLayout(all);
@@ -202,9 +206,11 @@ Result<GroupDiagnosis> DiagnoseGroups(const GroupModel& model,
       std::vector<int> train, test;
       for (int i = 0; i < n; ++i) (key_fold[model.fold_key(i)] == f ? test : train).push_back(i);
       if (test.empty()) continue;
-      INSITU_ASSIGN_OR_RETURN(GroupFit fit, Fit(model, all, layout, groups, train, o.max_iterations));
+      INSITU_ASSIGN_OR_RETURN(GroupFit fit,
+                              Fit(model, all, layout, groups, train, o.max_iterations));
       std::vector<double> r;
-      if (!model.Residuals(fit.theta, test, &r)) return FailedPrecondition("held-out units cannot be evaluated");
+      if (!model.Residuals(fit.theta, test, &r))
+        return FailedPrecondition("held-out units cannot be evaluated");
       for (double v : r) ss += v * v;
       count += static_cast<int>(r.size());
     }
@@ -248,7 +254,8 @@ Result<GroupDiagnosis> DiagnoseGroups(const GroupModel& model,
       }
       tried.push_back({g, Bic(f->rss, n, f->parameters), *f});
     }
-    std::sort(tried.begin(), tried.end(), [](const Candidate& a, const Candidate& b) { return a.bic < b.bic; });
+    std::sort(tried.begin(), tried.end(),
+              [](const Candidate& a, const Candidate& b) { return a.bic < b.bic; });
     bool took = false;
     for (const Candidate& c : tried) {
       if (bic - c.bic < o.min_delta_bic) break;

@@ -1,5 +1,6 @@
 #include "job/machine_diagnosis.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -7,8 +8,6 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-
-#include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -59,7 +58,8 @@ Status ReadSpec(const LoadedJob& job, DiagnoseMachineSpec* s, hw::MachineConfig*
     }
   }));
   if (s->scan.artifact != "step_gauge") {
-    return InvalidArgument(job.path + ": a diagnose_machine job needs an artifact: of kind step_gauge");
+    return InvalidArgument(job.path +
+                           ": a diagnose_machine job needs an artifact: of kind step_gauge");
   }
   if (s->scan.method != 1) {
     return InvalidArgument(job.path + ": reconstruction.method must be 1 (camera and light plane)");
@@ -96,18 +96,24 @@ enum Group { kCameraPose, kCameraDistortion, kHeadScale, kGalvoOffset, kLightPla
 
 std::vector<fit::ParameterGroup> Candidates(bool two_heights) {
   std::vector<fit::ParameterGroup> c = {
-      {"camera_pose", "the camera moved since calibration (bumped, remounted)",
+      {"camera_pose",
+       "the camera moved since calibration (bumped, remounted)",
        {"rx_mrad", "ry_mrad", "rz_mrad", "tx_mm", "ty_mm", "tz_mm"},
        {0.2, 0.2, 0.2, 0.1, 0.1, 0.1}},
-      {"camera_distortion", "the camera lens's distortion changed (refocused, another lens)",
-       {"dk1", "dk2"}, {1e-3, 1e-3}},
-      {"head_scale", "the field's size changed: objective focal length or galvo gain",
-       {"s_permille"}, {0.5}},
+      {"camera_distortion",
+       "the camera lens's distortion changed (refocused, another lens)",
+       {"dk1", "dk2"},
+       {1e-3, 1e-3}},
+      {"head_scale",
+       "the field's size changed: objective focal length or galvo gain",
+       {"s_permille"},
+       {0.5}},
       {"galvo_offset", "the field moved: mirror zero offsets", {"ox_mm", "oy_mm"}, {0.05, 0.05}},
       {"light_plane",
        "the pointer's light planes lean otherwise: a turn about the line (mirror axis) and a "
        "lean growing with the field (the exit pupil's height)",
-       {"tilt_mrad", "pupil_mm"}, {0.5, 5.0}},
+       {"tilt_mrad", "pupil_mm"},
+       {0.5, 5.0}},
   };
   if (two_heights) {
     c.push_back({"stage_scale", "the stage moves differ from its commands", {"s_permille"}, {0.5}});
@@ -117,10 +123,18 @@ std::vector<fit::ParameterGroup> Candidates(bool two_heights) {
 
 class CellModel : public fit::GroupModel {
  public:
+  // `groups`: the candidates in Group order, as fit::DiagnoseGroups lays out theta.
   CellModel(const calib::CalibrationSet& cal, const StepGaugeSpec& gauge, std::vector<Pass> passes,
-            std::vector<Observation> obs, bool two_heights)
-      : cal_(cal), gauge_(gauge), passes_(std::move(passes)), obs_(std::move(obs)),
-        two_heights_(two_heights) {
+            std::vector<Observation> obs, const std::vector<fit::ParameterGroup>& groups)
+      : cal_(cal),
+        gauge_(gauge),
+        passes_(std::move(passes)),
+        obs_(std::move(obs)),
+        two_heights_(static_cast<int>(groups.size()) > kStageScale) {
+    begin_.push_back(0);
+    for (const fit::ParameterGroup& g : groups) {
+      begin_.push_back(begin_.back() + static_cast<int>(g.params.size()));
+    }
     std::vector<Vector2d> px;
     for (const Observation& o : obs_) px.push_back(o.pixel);
     normalized_ = cal_.camera.Undistort(px);
@@ -151,11 +165,10 @@ class CellModel : public fit::GroupModel {
     const double* pose = &theta[Begin(kCameraPose)];
     const double* dist = &theta[Begin(kCameraDistortion)];
     const Eigen::Isometry3d galvo_from_camera = cal_.galvo.camera_from_galvo.inverse();
-    const Eigen::Matrix3d turn =
-        (Eigen::AngleAxisd(pose[2] * 1e-3, Vector3d::UnitZ()) *
-         Eigen::AngleAxisd(pose[1] * 1e-3, Vector3d::UnitY()) *
-         Eigen::AngleAxisd(pose[0] * 1e-3, Vector3d::UnitX()))
-            .toRotationMatrix();
+    const Eigen::Matrix3d turn = (Eigen::AngleAxisd(pose[2] * 1e-3, Vector3d::UnitZ()) *
+                                  Eigen::AngleAxisd(pose[1] * 1e-3, Vector3d::UnitY()) *
+                                  Eigen::AngleAxisd(pose[0] * 1e-3, Vector3d::UnitX()))
+                                     .toRotationMatrix();
     const Vector3d origin = galvo_from_camera.translation() + Vector3d(pose[3], pose[4], pose[5]);
     const Eigen::Matrix3d to_galvo = turn * galvo_from_camera.linear();
     std::vector<Vector2d> normalized;
@@ -227,12 +240,8 @@ class CellModel : public fit::GroupModel {
     return k;
   }
 
-  int Begin(Group g) const {
-    // Layout of theta: the candidates in Candidates() order.
-    static const int kBegin[] = {0, 6, 8, 9, 11, 13};
-    return kBegin[g];
-  }
-  int parameters() const { return two_heights_ ? 14 : 13; }
+  int Begin(Group g) const { return begin_[g]; }
+  int parameters() const { return begin_.back(); }
 
  private:
   const calib::CalibrationSet& cal_;
@@ -241,6 +250,7 @@ class CellModel : public fit::GroupModel {
   std::vector<Observation> obs_;
   std::vector<Vector2d> normalized_;
   bool two_heights_;
+  std::vector<int> begin_;  // group g's parameters: theta[begin_[g] .. begin_[g + 1])
 };
 
 nlohmann::ordered_json GroupJson(const fit::GroupReport& g) {
@@ -296,16 +306,17 @@ Status SaveResidualMap(const std::vector<Vector3d>& points, const std::vector<do
     rms = r.empty() ? 0 : std::sqrt(rms / r.size());
     char buf[160];
     std::snprintf(buf, sizeof buf, "%s: rms %.4f mm", title.c_str(), rms);
-    cv::putText(img, buf, cv::Point(x0 + 10, 24), cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0), 1,
-                cv::LINE_AA);
+    cv::putText(img, buf, cv::Point(x0 + 10, 24), cv::FONT_HERSHEY_SIMPLEX, 0.5,
+                cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
   };
   panel(0, before, "height residual, as calibrated");
   panel(w + 20, after, title_after);
   char buf[160];
-  std::snprintf(buf, sizeof buf, "x right, y up over the gauge; colour: -%.3f mm (blue) .. +%.3f mm (red)",
-                span, span);
-  cv::putText(img, buf, cv::Point(10, h + 28), cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0), 1,
-              cv::LINE_AA);
+  std::snprintf(buf, sizeof buf,
+                "x right, y up over the gauge; colour: -%.3f mm (blue) .. +%.3f mm (red)", span,
+                span);
+  cv::putText(img, buf, cv::Point(10, h + 28), cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0),
+              1, cv::LINE_AA);
   if (!cv::imwrite(path, img)) return DeviceError("cannot write " + path);
   return Status::Ok();
 }
@@ -328,16 +339,18 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
   hw::Machine& machine = up.machine;
   const calib::CalibrationSet& cal = up.calibration;
   INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir));
-  auto finish = [&](bool ok, const std::string& error, StatusCode code = StatusCode::kFailedPrecondition) {
+  auto finish = [&](bool ok, const std::string& error,
+                    StatusCode code = StatusCode::kFailedPrecondition) {
     return FinishReport(report, ok, error, wall_start, options.out_dir, code);
   };
   auto log = Logger("job");
   const StepGaugeSpec& gauge = spec.scan.gauge;
+  const std::string no_baseline = "no baseline at " + spec.baseline_path +
+                                  ": run this job once right after calibrating, with "
+                                  "--set diagnosis.record_baseline=true (what the calibration "
+                                  "itself leaves is not a change of the machine)";
   if (!spec.record_baseline && !std::filesystem::exists(spec.baseline_path)) {
-    return finish(false, "no baseline at " + spec.baseline_path +
-                             ": run this job once right after calibrating, with "
-                             "--set diagnosis.record_baseline=true (what the calibration itself "
-                             "leaves is not a change of the machine)");
+    return finish(false, no_baseline);
   }
 
   // The scans: one pass per stage height, every stripe centre binned along its line.
@@ -349,8 +362,9 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
     if (!moved.ok()) return finish(false, "stage: " + moved.ToString(), moved.code());
     PhaseProgress progress(options, "scan at stage " + std::to_string(z) + " mm", "lines",
                            spec.scan.scan.line_count());
-    auto scanned = RunScan(machine, spec.scan.scan, spec.scan.extraction, cal,
-                           [&](int done, int) { progress.Update(done); }, options.cancel);
+    auto scanned = RunScan(
+        machine, spec.scan.scan, spec.scan.extraction, cal,
+        [&](int done, int) { progress.Update(done); }, options.cancel);
     if (!scanned.ok()) return finish(false, scanned.status().ToString(), scanned.status().code());
     Pass pass;
     pass.stage_z_mm = z;
@@ -384,9 +398,10 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
   }
   (void)machine.stage->MoveTo(0.0);
   if (obs.size() < 50) {
-    return finish(false, "only " + std::to_string(obs.size()) +
-                             " binned points on the gauge's tops: is the gauge where artifact.center_mm "
-                             "says, and in the scan's x range?");
+    return finish(false,
+                  "only " + std::to_string(obs.size()) +
+                      " binned points on the gauge's tops: is the gauge where artifact.center_mm "
+                      "says, and in the scan's x range?");
   }
   const bool two_heights = spec.stage_z_mm.size() >= 2;
   const auto key_of = [&](const Observation& o) {
@@ -394,7 +409,7 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
   };
   if (spec.record_baseline) {
     // The machine as calibrated: its residuals, kept for every later diagnosis.
-    CellModel as_is(cal, gauge, passes, obs, two_heights);
+    CellModel as_is(cal, gauge, passes, obs, Candidates(two_heights));
     std::vector<int> all(obs.size());
     for (size_t k = 0; k < obs.size(); ++k) all[k] = static_cast<int>(k);
     std::vector<double> r;
@@ -403,7 +418,9 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
     }
     std::string text =
         "# insitu diagnose_machine baseline: height residuals of the machine as calibrated\n"
-        "# calibration: " + spec.scan.machine.calibration_path + "\n"
+        "# calibration: " +
+        spec.scan.machine.calibration_path +
+        "\n"
         "stage_z_mm,line_x_mm,step,bin,residual_mm\n";
     double ss = 0;
     for (size_t k = 0; k < obs.size(); ++k) {
@@ -434,10 +451,7 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
   {
     std::ifstream in(spec.baseline_path);
     if (!in) {
-      return finish(false, "no baseline at " + spec.baseline_path +
-                               ": run this job once right after calibrating, with "
-                               "--set diagnosis.record_baseline=true (what the calibration itself "
-                               "leaves is not a change of the machine)");
+      return finish(false, no_baseline);
     }
     std::map<std::string, double> base;
     std::string line;
@@ -447,8 +461,10 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
       if (line.empty() || line[0] == '#' || line.rfind("stage_z_mm", 0) == 0) continue;
       const size_t comma = line.rfind(',');
       char* end = nullptr;
-      const double v = comma == std::string::npos ? NAN : std::strtod(line.c_str() + comma + 1, &end);
-      const bool whole = end != nullptr && std::string(end).find_first_not_of(" \t\r") == std::string::npos;
+      const double v =
+          comma == std::string::npos ? NAN : std::strtod(line.c_str() + comma + 1, &end);
+      const bool whole =
+          end != nullptr && std::string(end).find_first_not_of(" \t\r") == std::string::npos;
       if (!std::isfinite(v) || !whole || std::count(line.begin(), line.end(), ',') != 4) {
         return finish(false, spec.baseline_path + ":" + std::to_string(row) +
                                  ": expected stage_z_mm,line_x_mm,step,bin,residual_mm");
@@ -470,10 +486,10 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
     }
     obs = std::move(kept);
   }
-  CellModel model(cal, gauge, passes, obs, two_heights);
+  const std::vector<fit::ParameterGroup> all_candidates = Candidates(two_heights);
+  CellModel model(cal, gauge, passes, obs, all_candidates);
   // No nuisance: the heights of a level gauge standing on the plate do not depend on where on
   // the plate it stands (its placement only decides which step a point is on, fixed above).
-  std::vector<fit::ParameterGroup> all_candidates = Candidates(two_heights);
   fit::GroupSelectionOptions sel = spec.selection;
   auto d = fit::DiagnoseGroups(model, {}, all_candidates, sel);
   if (!d.ok()) return finish(false, "diagnosis: " + d.status().ToString(), d.status().code());
@@ -493,13 +509,15 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
       "focus_scale (the dynamic focus travel) moves no chief ray: a scan cannot show it, and it "
       "is not among the candidates");
   if (!two_heights) {
-    report.warnings.push_back("one stage height: stage_scale cannot be seen (list two in "
-                              "diagnosis.stage_z_mm)");
+    report.warnings.push_back(
+        "one stage height: stage_scale cannot be seen (list two in "
+        "diagnosis.stage_z_mm)");
   }
   nlohmann::ordered_json effects = nlohmann::ordered_json::array();
   for (const fit::GroupReport& g : d->groups) effects.push_back(GroupJson(g));
   nlohmann::ordered_json nominal = {{"rms_mm", d->nominal_rms}, {"cv_rms_mm", d->nominal_cv_rms}};
-  nlohmann::ordered_json extended = {{"rms_mm", d->extended_rms}, {"cv_rms_mm", d->extended_cv_rms}};
+  nlohmann::ordered_json extended = {{"rms_mm", d->extended_rms},
+                                     {"cv_rms_mm", d->extended_cv_rms}};
   // Structure left: the extended residuals of neighbouring bins along a line still alike
   // (lag-one correlation over every line). Speckle makes neighbouring 2 mm bins independent.
   double num = 0, den = 0;
