@@ -9,9 +9,11 @@
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <numeric>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <random>
 
 #include "insitu/core/file.h"
 #include "insitu/core/log.h"
@@ -321,6 +323,89 @@ Status SaveResidualMap(const std::vector<Vector3d>& points, const std::vector<do
   return Status::Ok();
 }
 
+constexpr double kAlpha = 0.01;  // false-alarm rate of the structure test
+constexpr int kPermutations = 199;
+
+std::string Um(double mm) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.1f", mm * 1e3);
+  return b;
+}
+
+std::string Join(const std::vector<std::string>& names) {
+  std::string s;
+  for (const std::string& n : names) s += (s.empty() ? "" : ", ") + n;
+  return s;
+}
+
+// Structure in the residuals along the scan lines. Speckle makes neighbouring bins of a line
+// independent, so half the mean squared difference of neighbours is the noise variance, free of
+// any smooth structure (von Neumann); what the residuals hold beyond it is structure. Its
+// significance: the neighbours' summed products against the same sum for residuals shuffled
+// among the bins (one-sided: a structure smoother than a bin makes neighbours alike).
+struct Structure {
+  double rho = 0.0;           // lag-one correlation over neighbouring bins
+  double noise_mm = 0.0;      // from neighbours' differences
+  double structure_mm = 0.0;  // rms beyond the noise
+  double p = 1.0;
+  std::string where;  // the lines and stretch holding the largest residuals
+};
+
+Structure LineStructure(const std::vector<Observation>& obs, const std::vector<double>& r,
+                        const std::vector<Pass>& passes, double bin_mm) {
+  Structure s;
+  std::vector<std::pair<int, int>> pairs;
+  for (size_t k = 0; k + 1 < obs.size() && k + 1 < r.size(); ++k) {
+    const Observation &a = obs[k], &b = obs[k + 1];
+    if (a.pass == b.pass && a.line == b.line && a.step == b.step && b.bin == a.bin + 1) {
+      pairs.push_back({static_cast<int>(k), static_cast<int>(k + 1)});
+    }
+  }
+  if (pairs.size() < 10) return s;
+  double prod = 0, diff2 = 0, sq = 0;
+  for (const auto& [i, j] : pairs) {
+    prod += r[i] * r[j];
+    diff2 += (r[i] - r[j]) * (r[i] - r[j]);
+    sq += 0.5 * (r[i] * r[i] + r[j] * r[j]);
+  }
+  const double n = static_cast<double>(pairs.size());
+  s.rho = sq > 0 ? prod / sq : 0.0;
+  const double noise2 = 0.5 * diff2 / n;
+  s.noise_mm = std::sqrt(noise2);
+  s.structure_mm = std::sqrt(std::max(0.0, sq / n - noise2));
+  std::vector<double> shuffled(r.begin(), r.begin() + std::min(r.size(), obs.size()));
+  std::mt19937_64 rng(0x5bd1e995ull);
+  int above = 0;
+  for (int t = 0; t < kPermutations; ++t) {
+    std::shuffle(shuffled.begin(), shuffled.end(), rng);
+    double q = 0;
+    for (const auto& [i, j] : pairs) q += shuffled[i] * shuffled[j];
+    above += q >= prod;
+  }
+  s.p = (1.0 + above) / (1.0 + kPermutations);
+  // Where: the tenth of the bins with the largest residuals.
+  std::vector<int> idx(shuffled.size());
+  std::iota(idx.begin(), idx.end(), 0);
+  std::sort(idx.begin(), idx.end(), [&](int a, int b) { return std::abs(r[a]) > std::abs(r[b]); });
+  const int top = std::max<int>(1, static_cast<int>(idx.size()) / 10);
+  double x_lo = 1e300, x_hi = -1e300, y_lo = 1e300, y_hi = -1e300;
+  for (int k = 0; k < top; ++k) {
+    const Observation& o = obs[idx[k]];
+    const double x = passes[o.pass].lines[o.line].first.x();
+    x_lo = std::min(x_lo, x);
+    x_hi = std::max(x_hi, x);
+    y_lo = std::min(y_lo, o.bin * bin_mm);
+    y_hi = std::max(y_hi, (o.bin + 1) * bin_mm);
+  }
+  char b[200];
+  std::snprintf(b, sizeof b,
+                "%.1f um rms beyond %.1f um of noise, largest (%.1f um and below) on lines at x "
+                "%.1f..%.1f mm, y %.1f..%.1f mm",
+                s.structure_mm * 1e3, s.noise_mm * 1e3, std::abs(r[idx[0]]) * 1e3, x_lo, x_hi, y_lo,
+                y_hi);
+  s.where = b;
+  return s;
+}
 }  // namespace
 
 Status CheckDiagnoseMachineJob(const LoadedJob& job) {
@@ -494,14 +579,38 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
   auto d = fit::DiagnoseGroups(model, {}, all_candidates, sel);
   if (!d.ok()) return finish(false, "diagnosis: " + d.status().ToString(), d.status().code());
 
+  // Structure left after the causes (LineStructure): an off-library change leaves it. The
+  // causes must account for the change: groups that fit part of a change the library has no
+  // effect for are reported as partial, never as its cause.
+  const Structure left = LineStructure(obs, d->residual_extended, passes, spec.bin_mm);
+  const bool unexplained = left.p < kAlpha && left.structure_mm >= 0.5 * left.noise_mm;
+  std::vector<fit::GroupReport> partial_groups;
+  if (unexplained && !d->cause.empty()) {
+    d->notes.push_back("structure of " + Um(left.structure_mm) + " um rms is left beside " +
+                       Um(left.noise_mm) + " um of noise with the best of the library (" +
+                       Join(d->cause) +
+                       "): they fit part of a change they do not explain, so none is named");
+    partial_groups = std::move(d->groups);
+    d->groups.clear();
+    d->cause.clear();
+  }
+  const bool partial = !partial_groups.empty();
+  const double extended_rms = partial ? d->nominal_rms : d->extended_rms;
+  const double extended_cv_rms = partial ? d->nominal_cv_rms : d->extended_cv_rms;
+  const double gain = partial ? 1.0 : d->gain;
+
   auto& m = report.metrics;
   m["observations"] = static_cast<double>(obs.size());
   m["passes"] = static_cast<double>(passes.size());
   m["nominal_rms_mm"] = d->nominal_rms;
   m["nominal_cv_rms_mm"] = d->nominal_cv_rms;
-  m["extended_rms_mm"] = d->extended_rms;
-  m["extended_cv_rms_mm"] = d->extended_cv_rms;
-  m["gain"] = d->gain;
+  m["extended_rms_mm"] = extended_rms;
+  m["extended_cv_rms_mm"] = extended_cv_rms;
+  m["gain"] = gain;
+  m["residual_lag1_correlation"] = left.rho;
+  m["residual_noise_mm"] = left.noise_mm;
+  m["residual_structure_mm"] = left.structure_mm;
+  m["unexplained_p"] = left.p;
   for (const fit::GroupReport& g : d->groups) {
     for (size_t k = 0; k < g.params.size(); ++k) m[g.name + "_" + g.params[k]] = g.values[k];
   }
@@ -513,30 +622,25 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
         "one stage height: stage_scale cannot be seen (list two in "
         "diagnosis.stage_z_mm)");
   }
+  if (unexplained) report.warnings.push_back("unexplained structure: " + left.where);
   nlohmann::ordered_json effects = nlohmann::ordered_json::array();
   for (const fit::GroupReport& g : d->groups) effects.push_back(GroupJson(g));
   nlohmann::ordered_json nominal = {{"rms_mm", d->nominal_rms}, {"cv_rms_mm", d->nominal_cv_rms}};
-  nlohmann::ordered_json extended = {{"rms_mm", d->extended_rms},
-                                     {"cv_rms_mm", d->extended_cv_rms}};
-  // Structure left: the extended residuals of neighbouring bins along a line still alike
-  // (lag-one correlation over every line). Speckle makes neighbouring 2 mm bins independent.
-  double num = 0, den = 0;
-  for (size_t k = 0; k + 1 < obs.size() && k + 1 < d->residual_extended.size(); ++k) {
-    if (obs[k].pass == obs[k + 1].pass && obs[k].line == obs[k + 1].line &&
-        obs[k].step == obs[k + 1].step) {
-      num += d->residual_extended[k] * d->residual_extended[k + 1];
-    }
-    den += d->residual_extended[k] * d->residual_extended[k];
+  nlohmann::ordered_json extended = {{"rms_mm", extended_rms}, {"cv_rms_mm", extended_cv_rms}};
+  if (partial) {
+    nlohmann::ordered_json p = nlohmann::ordered_json::array();
+    for (const fit::GroupReport& g : partial_groups) p.push_back(GroupJson(g));
+    report.extra_json["partial"] = p.dump();
   }
-  const double lag1 = den > 0 ? num / den : 0.0;
-  const bool unexplained = lag1 > 0.5;
-  m["residual_lag1_correlation"] = lag1;
+  if (unexplained)
+    report.extra_json["unexplained_where"] = nlohmann::ordered_json(left.where).dump();
+  report.extra_json["unexplained_p"] = nlohmann::ordered_json(left.p).dump();
   report.extra_json["n_points"] = std::to_string(obs.size());
   report.extra_json["nominal"] = nominal.dump();
   report.extra_json["effects"] = effects.dump();
   report.extra_json["cause"] = nlohmann::ordered_json(d->cause).dump();
   report.extra_json["extended"] = extended.dump();
-  report.extra_json["gain"] = nlohmann::ordered_json(d->gain).dump();
+  report.extra_json["gain"] = nlohmann::ordered_json(gain).dump();
   report.extra_json["unexplained"] = unexplained ? "true" : "false";
   report.extra_json["notes"] = nlohmann::ordered_json(d->notes).dump();
 
@@ -545,10 +649,11 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
   for (size_t k = 0; k < obs.size(); ++k) all[k] = static_cast<int>(k);
   std::vector<Vector3d> points;
   if (model.Points(std::vector<double>(model.parameters(), 0.0), all, &points)) {
-    std::string after = "with the causes";
-    if (!d->cause.empty()) {
+    std::string after = partial ? "best partial fit, no cause" : "with the causes";
+    const std::vector<fit::GroupReport>& shown = partial ? partial_groups : d->groups;
+    if (!shown.empty()) {
       after += " (";
-      for (size_t k = 0; k < d->cause.size(); ++k) after += (k ? " + " : "") + d->cause[k];
+      for (size_t k = 0; k < shown.size(); ++k) after += (k ? " + " : "") + shown[k].name;
       after += ")";
     }
     const std::string png = (std::filesystem::path(options.out_dir) / "residuals.png").string();
@@ -557,9 +662,10 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
     }
   }
   std::string summary = d->cause.empty() ? "the machine is as calibrated" : "cause:";
+  if (unexplained) summary = "a change no effect of the library explains (" + left.where + ")";
   for (const std::string& c : d->cause) summary += " " + c;
   log->info("diagnose_machine: {} ({:.1f} um held out as calibrated, {:.1f} um with the causes)",
-            summary, d->nominal_cv_rms * 1e3, d->extended_cv_rms * 1e3);
+            summary, d->nominal_cv_rms * 1e3, extended_cv_rms * 1e3);
   return finish(true, "");
 }
 
