@@ -1,9 +1,11 @@
 // The whole cell diagnosed (job diagnose_machine, CONTRACT.md "Machine diagnosis"): the default
 // cell is calibrated, a baseline of the machine as calibrated is recorded, and the machine is
-// changed in the simulator's world the way a cell changes in use: the camera bumped, the
-// objective swapped for one of another focal length, the mirrors' zero drifting, the pointer's
-// light planes leaning otherwise (the exit pupil), the stage's travel off. Each change must be
-// named first; the unchanged machine (a fresh noise realisation) must be named nothing.
+// changed in the simulator's world the way a cell changes in use: the camera bumped, its lens
+// swapped, the objective swapped for one of another focal length, the mirrors' zero drifting,
+// the pointer's light planes leaning otherwise (the exit pupil), the stage's travel off, the
+// galvos' bearings worn. Each change of the library must be named first, the worn bearings
+// (outside it) reported unexplained with nothing named; the unchanged machine (a fresh noise
+// realisation) must be named nothing.
 //
 // Sizes: the heights of 2 mm bins scatter by ~13 um about the baseline (speckle, both scans).
 // Each change is set to move the gauge's heights by several times that.
@@ -78,6 +80,8 @@ TEST_F(DiagnoseMachine, EachChangeIsNamedFirst) {
   const std::vector<Case> cases = {
       // The camera turned ~1 mrad (its aim moved 0.3 mm at 350 mm).
       {"bumped", "camera_pose", {"world.camera.look_at_mm=[0.6,-0.1,0.0]"}},
+      // Another camera lens: pincushion k1 +0.10 where the calibrated one had barrel -0.06.
+      {"lens", "camera_distortion", {"world.camera.k1=0.1"}},
       // An objective 0.16 % shorter: the field 0.1 mm smaller at its edge.
       {"objective", "head_scale", {"world.scan_head.optics.focal_length_mm=254.6"}},
       // The X mirror's zero 0.2 mrad off: every line 51 um over.
