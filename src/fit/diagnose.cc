@@ -14,9 +14,9 @@
 #include <random>
 #include <thread>
 
+#include "fit/ceres_support.h"
 #include "insitu/fit/effects.h"
 #include "insitu/fit/model_fit.h"
-#include "fit/ceres_support.h"
 
 namespace insitu::fit {
 namespace {
@@ -124,6 +124,7 @@ std::string Describe(const std::string& name) {
       {"skew", "non-orthogonal axes"},
       {"mirror_separation", "two-mirror pincushion"},
       {"lens_radial", "radial lens distortion"},
+      {"head_distortion", "the head's distortion about its optical axis"},
       {"head_geometry", "the scan head's own geometry"},
       {"perspective", "a measuring camera not parallel to the field"},
       {"thermal_drift", "thermal drift"},
@@ -143,13 +144,22 @@ constexpr const char* kHeadGeometry = "head_geometry";
 
 bool IsHeadTerm(const std::string& name) {
   return name == "offset" || name == "scale" || name == "skew" || name == "mirror_separation" ||
-         name == "lens_radial";
+         name == "lens_radial" || name == "head_distortion";
+}
+// head_distortion is mirror_separation and lens_radial about one axis: never beside them.
+bool Excludes(const std::string& a, const std::string& b) {
+  const auto pair = [&](const char* x, const char* y) { return a == x && b == y; };
+  return pair("head_distortion", "mirror_separation") || pair("head_distortion", "lens_radial") ||
+         pair("mirror_separation", "head_distortion") || pair("lens_radial", "head_distortion");
 }
 // The head is tried once a distortion term shows it: a field that is only linear is never put
 // on the head.
 bool HasLeadingHeadTerm(const std::vector<const Effect*>& effects) {
   for (const Effect* e : effects) {
-    if (e->name() == "mirror_separation" || e->name() == "lens_radial") return true;
+    if (e->name() == "mirror_separation" || e->name() == "lens_radial" ||
+        e->name() == "head_distortion") {
+      return true;
+    }
   }
   return false;
 }
@@ -179,8 +189,23 @@ Status DiagnoseOptions::Validate() const {
   return Status::Ok();
 }
 
-Result<Diagnosis> Diagnose(const FieldData& data, const DiagnoseOptions& o) {
+Result<Diagnosis> Diagnose(const FieldData& input, const DiagnoseOptions& o) {
   INSITU_RETURN_IF_ERROR(o.Validate());
+  // A table of moves: its reference row is the zero of the others, not a measurement. It is
+  // left out of every fit and held-out error, and the reference's own measuring error, common
+  // to every move, is a nuisance offset in every model (the nominal one too), never a cause.
+  FieldData moves;
+  const bool relative = input.reference >= 0;
+  if (relative) {
+    moves.origin = input.origin;
+    moves.has_z = input.has_z;
+    moves.has_t = input.has_t;
+    moves.has_v = input.has_v;
+    for (size_t i = 0; i < input.points.size(); ++i) {
+      if (static_cast<int>(i) != input.reference) moves.points.push_back(input.points[i]);
+    }
+  }
+  const FieldData& data = relative ? moves : input;
   const int n = static_cast<int>(data.points.size());
   if (data.DistinctPositions() < 3) {
     return FailedPrecondition(data.origin + ": " + std::to_string(data.DistinctPositions()) +
@@ -217,19 +242,28 @@ Result<Diagnosis> Diagnose(const FieldData& data, const DiagnoseOptions& o) {
   d.noise_mm = df_pe > 0 ? std::sqrt(2.0 * ss_pe / df_pe) : kNaN;
   d.noise_source = df_pe > 0 ? "replicates" : "none";
 
-  // The nominal model.
+  // The nominal model (with a table of moves, the reference's error).
+  const auto library = EffectLibrary();
   std::vector<const Effect*> current;
+  const Effect* reference_offset = nullptr;
+  for (const auto& e : library) {
+    if (relative && e->name() == "offset") reference_offset = e.get();
+  }
+  if (reference_offset != nullptr) current.push_back(reference_offset);
+  const size_t nuisance = current.size();  // current[0, nuisance): never causes
   auto fit = FitEffects(data, current);
   if (!fit.ok()) return fit.status();
   d.nominal_rms_mm = fit->rms_mm;
   INSITU_ASSIGN_OR_RETURN(d.nominal_cv_rms_mm, CrossValidatedRms(data, current, fold_of, folds));
-  for (const FieldPoint& p : data.points) d.residual_nominal.push_back(p.meas - p.cmd);
+  for (const FieldPoint& p : input.points) {
+    d.residual_nominal.push_back(p.meas - Predict(p, current, fit->effects));
+  }
+  for (const Effect* e : current) d.effects.push_back(Entered(*e, 0.0, d.nominal_cv_rms_mm));
   double bic = Bic(fit->rss_mm2, m, fit->parameters);
   double cv = d.nominal_cv_rms_mm;
   FitResult best_fit = *fit;
 
   // Forward selection.
-  const auto library = EffectLibrary();
   const Effect* head = nullptr;
   for (const auto& e : library) {
     if (e->name() == kHeadGeometry) head = e.get();
@@ -245,7 +279,7 @@ Result<Diagnosis> Diagnose(const FieldData& data, const DiagnoseOptions& o) {
       std::vector<EffectReport> reports;
       bool placed = false;
       for (size_t k = 0; k < current.size(); ++k) {
-        if (IsHeadTerm(current[k]->name())) {
+        if (k >= nuisance && IsHeadTerm(current[k]->name())) {
           if (!placed) {
             trial.push_back(head);
             reports.push_back({});
@@ -315,6 +349,10 @@ Result<Diagnosis> Diagnose(const FieldData& data, const DiagnoseOptions& o) {
         // The head's own terms are not added beside it: it holds them.
         if (std::find(current.begin(), current.end(), head) != current.end() &&
             IsHeadTerm(e->name())) {
+          continue;
+        }
+        if (std::any_of(current.begin(), current.end(),
+                        [&](const Effect* c) { return Excludes(c->name(), e->name()); })) {
           continue;
         }
         const int params = best_fit.parameters + static_cast<int>(e->param_names().size());
@@ -424,11 +462,30 @@ Result<Diagnosis> Diagnose(const FieldData& data, const DiagnoseOptions& o) {
     d.effects[k].params = best_fit.effects[k].params;
     d.effects[k].stderrs = best_fit.effects[k].stderrs;
   }
+  if (relative) {
+    const EffectReport& r = d.effects[0];
+    char buf[320];
+    std::snprintf(
+        buf, sizeof buf,
+        "a table of moves from line %d (commanded %.4g, %.4g mm): that row is their zero, "
+        "not a measurement, and left out; its own error, common to every move, fitted "
+        "as an offset dx = %.4g +- %.2g, dy = %.4g +- %.2g mm",
+        input.points[input.reference].line, input.points[input.reference].cmd.x(),
+        input.points[input.reference].cmd.y(), r.params[0], r.stderrs[0], r.params[1],
+        r.stderrs[1]);
+    d.notes.push_back(buf);
+  }
+  d.effects.erase(d.effects.begin(), d.effects.begin() + static_cast<long>(nuisance));
   d.extended_rms_mm = best_fit.rms_mm;
   d.extended_cv_rms_mm = cv;
   d.gain = cv > 0 ? d.nominal_cv_rms_mm / cv : 1.0;
-  for (const FieldPoint& p : data.points) {
+  for (const FieldPoint& p : input.points) {
     d.residual_extended.push_back(p.meas - Predict(p, current, best_fit.effects));
+  }
+  // The residuals of the points fitted (without a table's reference row), for the tests below.
+  std::vector<Eigen::Vector2d> fitted_residual;
+  for (const FieldPoint& p : data.points) {
+    fitted_residual.push_back(p.meas - Predict(p, current, best_fit.effects));
   }
   // Strongest first: by the BIC drop at entry (forward selection already takes them so).
   for (const EffectReport& e : d.effects) d.cause.push_back(e.name);
@@ -463,7 +520,7 @@ Result<Diagnosis> Diagnose(const FieldData& data, const DiagnoseOptions& o) {
       }
       return s;
     };
-    std::vector<Eigen::Vector2d> r = d.residual_extended;
+    std::vector<Eigen::Vector2d> r = fitted_residual;
     const double s0 = statistic(r);
     std::mt19937_64 rng(o.seed ^ 0x5bd1e995ull);
     int above = 0;
@@ -480,7 +537,7 @@ Result<Diagnosis> Diagnose(const FieldData& data, const DiagnoseOptions& o) {
     std::vector<int> idx(n);
     std::iota(idx.begin(), idx.end(), 0);
     std::sort(idx.begin(), idx.end(), [&](int a, int b) {
-      return d.residual_extended[a].squaredNorm() > d.residual_extended[b].squaredNorm();
+      return fitted_residual[a].squaredNorm() > fitted_residual[b].squaredNorm();
     });
     const int top = std::max(1, n / 10);
     Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e300), hi = -lo;
@@ -492,7 +549,7 @@ Result<Diagnosis> Diagnose(const FieldData& data, const DiagnoseOptions& o) {
     std::snprintf(
         buf, sizeof buf,
         "largest residuals (%.4f mm and below) at commanded x %.2f..%.2f, y %.2f..%.2f mm",
-        d.residual_extended[idx[0]].norm(), lo.x(), hi.x(), lo.y(), hi.y());
+        fitted_residual[idx[0]].norm(), lo.x(), hi.x(), lo.y(), hi.y());
     d.unexplained_where = buf;
   }
   // Within noise from the start: nothing to name.

@@ -228,6 +228,40 @@ class LensRadial : public Effect {
   }
 };
 
+// mirror_separation and lens_radial about one optical axis: in a head they are not two
+// centres but one, where the objective's axis meets the field.
+class HeadDistortion : public Effect {
+ public:
+  std::string name() const override { return "head_distortion"; }
+  std::vector<std::string> param_names() const override { return {"kappa", "k", "x0", "y0"}; }
+  std::string meaning() const override {
+    return "the head's leading-order distortion about its optical axis: the two-mirror "
+           "pincushion (x grows with y^2) and the objective's radial term, both about the one "
+           "axis (x0, y0) (scan head; seeds 001, 003)";
+  }
+  int stage() const override { return 0; }
+  std::vector<double> Initial(const FieldData& data,
+                              const std::vector<Vector2d>& residual) const override {
+    const Vector2d c = Centroid(data);
+    const std::vector<double> k =
+        LinearStart(data, residual, 2, [&c](const FieldPoint& p, const Vector2d&, Regressors* r) {
+          const Vector2d d = p.cmd - c;
+          (*r)(0, 0) = d.x() * d.y() * d.y();
+          r->col(1) = d.squaredNorm() * d;
+        });
+    return {k[0], k[1], c.x(), c.y()};
+  }
+  void Bounds(const FieldData& data, std::vector<double>* lo,
+              std::vector<double>* hi) const override {
+    CentreBounds(data, 2, lo, hi);
+  }
+  void Apply(const FieldPoint& p, const double* q, Vector2d* uv) const override {
+    const Vector2d d(p.cmd.x() - q[2], p.cmd.y() - q[3]);
+    uv->x() += q[0] * d.x() * d.y() * d.y();
+    *uv += q[1] * d.squaredNorm() * d;
+  }
+};
+
 class Perspective : public Effect {
  public:
   std::string name() const override { return "perspective"; }
@@ -478,6 +512,7 @@ std::vector<std::unique_ptr<Effect>> EffectLibrary() {
   lib.push_back(std::make_unique<ThermalDrift>());
   lib.push_back(std::make_unique<TrackingLag>());
   lib.push_back(std::make_unique<FocusScale>());
+  lib.push_back(std::make_unique<HeadDistortion>());
   return lib;
 }
 

@@ -212,6 +212,23 @@ Result<FieldData> ParseFieldCsv(const std::string& text, const std::string& orig
                            ": no data rows after the header on line " +
                            std::to_string(header_line) + " (columns " + kRequiredList + ")");
   }
+  if (const auto it = data.extra.find("reference"); it != data.extra.end()) {
+    for (size_t i = 0; i < it->second.size(); ++i) {
+      const double r = it->second[i];
+      const std::string where = origin + ":" + std::to_string(data.points[i].line) + ": ";
+      if (r != 0.0 && r != 1.0) {
+        return ParseError(where +
+                          "column 'reference' must be 0 or 1 (1 on the row the others "
+                          "were measured from)");
+      }
+      if (r == 1.0 && data.reference >= 0) {
+        return InvalidArgument(where + "a second row marked reference (the first on line " +
+                               std::to_string(data.points[data.reference].line) +
+                               "): the moves are measured from one position");
+      }
+      if (r == 1.0) data.reference = static_cast<int>(i);
+    }
+  }
   return data;
 }
 

@@ -5,10 +5,10 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <sstream>
 
 #include "insitu/core/file.h"
 #include "insitu/fit/extension.h"
@@ -58,7 +58,11 @@ void DrawPanel(cv::Mat& img, const cv::Rect& area, const fit::FieldData& data,
   for (const auto& r : residual) rms += r.squaredNorm();
   rms = std::sqrt(rms / std::max<size_t>(1, residual.size()));
   char buf[200];
-  cv::putText(img, title, cv::Point(area.x + 10, area.y + 24), cv::FONT_HERSHEY_SIMPLEX, 0.6,
+  // A long list of causes: the title shrinks to the panel's width.
+  int base = 0;
+  const double width = cv::getTextSize(title, cv::FONT_HERSHEY_SIMPLEX, 0.6, 1, &base).width;
+  const double font = 0.6 * std::min(1.0, (area.width - 20) / std::max(1.0, width));
+  cv::putText(img, title, cv::Point(area.x + 10, area.y + 24), cv::FONT_HERSHEY_SIMPLEX, font,
               cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
   std::snprintf(buf, sizeof buf, "rms %.4f mm, longest %.4f mm; arrows x %g", rms, longest, gain);
   cv::putText(img, buf, cv::Point(area.x + 10, area.y + area.height - 14), cv::FONT_HERSHEY_SIMPLEX,
@@ -90,7 +94,8 @@ Result<fit::FieldData> LoadDiagnoseData(const std::string& path, std::string* so
   std::istringstream lines(text.str());
   std::string line;
   while (std::getline(lines, line)) {
-    if (!line.empty() && line[0] != '#' && line.find_first_not_of(" \t\r") != std::string::npos) break;
+    if (!line.empty() && line[0] != '#' && line.find_first_not_of(" \t\r") != std::string::npos)
+      break;
   }
   if (line.find("x_cmd_mm") == std::string::npos && line.find("dx_mm") != std::string::npos) {
     INSITU_ASSIGN_OR_RETURN(pattern::CorrectionTable table,
@@ -100,8 +105,9 @@ Result<fit::FieldData> LoadDiagnoseData(const std::string& path, std::string* so
     for (double y : g.ys()) {
       for (double x : g.xs()) nodes.emplace_back(x, y);
     }
-    *source = "correction table (x_mm, y_mm, dx_mm, dy_mm): the head without it, commanded p + "
-              "offset, lands on p";
+    *source =
+        "correction table (x_mm, y_mm, dx_mm, dy_mm): the head without it, commanded p + "
+        "offset, lands on p";
     return FieldDataFromCorrection(nodes, g.values(), path);
   }
   *source = "measured field data";

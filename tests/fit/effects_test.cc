@@ -77,7 +77,8 @@ TEST(EffectLibrary, ParameterNamesAndStagesFollowTheContract) {
       {"perspective", {"p", "q"}},
       {"thermal_drift", {"ox", "oy", "g"}},
       {"tracking_lag", {"tau"}},
-      {"focus_scale", {"c"}}};
+      {"focus_scale", {"c"}},
+      {"head_distortion", {"kappa", "k", "x0", "y0"}}};
   for (const auto& [name, want] : params) {
     const std::unique_ptr<Effect> e = Make(name);
     EXPECT_EQ(e->param_names(), want) << name;

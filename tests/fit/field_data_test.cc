@@ -27,9 +27,11 @@ TEST(FieldData, ShippedHao2009Parses) {
   EXPECT_TRUE(d.ReplicateGroups().empty());
   EXPECT_EQ(d.DistinctPositions(), 15);
 
-  // Four comment lines, the header on line 5, data from line 6.
-  EXPECT_EQ(d.points[0].line, 6);
-  EXPECT_EQ(d.points[14].line, 20);
+  // Five comment lines, the header on line 6, data from line 7.
+  EXPECT_EQ(d.points[0].line, 7);
+  EXPECT_EQ(d.points[14].line, 21);
+  // A table of moves from the field centre: its first row is their reference.
+  EXPECT_EQ(d.reference, 0);
   EXPECT_EQ(d.points[0].cmd, Eigen::Vector2d(0.0, 0.0));
   EXPECT_EQ(d.points[6].cmd, Eigen::Vector2d(0.0, 6.0));
   EXPECT_EQ(d.points[6].meas, Eigen::Vector2d(-0.1224, 6.0430));
@@ -37,8 +39,8 @@ TEST(FieldData, ShippedHao2009Parses) {
   EXPECT_EQ(d.points[14].meas, Eigen::Vector2d(6.9892, 0.1584));
   EXPECT_EQ(d.points[14].z_cmd_mm, 0.0);
 
-  ASSERT_EQ(d.extra.size(), 4u);
-  for (const char* name : {"px_x", "px_y", "comp_h_lsb", "comp_v_lsb"}) {
+  ASSERT_EQ(d.extra.size(), 5u);
+  for (const char* name : {"px_x", "px_y", "comp_h_lsb", "comp_v_lsb", "reference"}) {
     ASSERT_TRUE(d.extra.count(name)) << name;
     EXPECT_EQ(d.extra.at(name).size(), 15u) << name;
   }
@@ -276,6 +278,23 @@ INSTANTIATE_TEST_SUITE_P(
                   {"no header", "x_cmd_mm, y_cmd_mm, x_meas_mm, y_meas_mm"}},
         Malformed{"EmptyText", "", StatusCode::kParseError, "bad.csv:1: ", {"no header"}}),
     [](const ::testing::TestParamInfo<Malformed>& info) { return std::string(info.param.name); });
+
+TEST(FieldData, TheReferenceOfATableOfMovesIsOneRow) {
+  const std::string head = "x_cmd_mm,y_cmd_mm,x_meas_mm,y_meas_mm,reference\n";
+  auto ok = ParseFieldCsv(head + "0,0,0,0,0\n1,0,1.01,0,1\n2,0,2.0,0,0\n", "t.csv");
+  ASSERT_TRUE(ok.ok()) << ok.status().ToString();
+  EXPECT_EQ(ok->reference, 1);
+  auto none = ParseFieldCsv("x_cmd_mm,y_cmd_mm,x_meas_mm,y_meas_mm\n0,0,0,0\n", "t.csv");
+  ASSERT_TRUE(none.ok());
+  EXPECT_EQ(none->reference, -1);
+  auto two = ParseFieldCsv(head + "0,0,0,0,1\n1,0,1,0,1\n", "t.csv");
+  ASSERT_FALSE(two.ok());
+  EXPECT_NE(two.status().message().find("t.csv:3"), std::string::npos) << two.status().message();
+  EXPECT_NE(two.status().message().find("line 2"), std::string::npos) << two.status().message();
+  auto bad = ParseFieldCsv(head + "0,0,0,0,yes\n", "t.csv");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.status().message().find("'reference'"), std::string::npos);
+}
 
 TEST(FieldData, FirstBadRowIsReported) {
   const std::string text = kHeader + "\n1,2,3,4\n1,x,3,4\n1,2,y,4\n";

@@ -128,6 +128,8 @@ const std::vector<Truth>& Realistic() {
       {"thermal_drift", {1e-4, -5e-5, 2e-6}},  // 0.06 mm offset and gain at the corner at 600 s
       {"tracking_lag", {1e-4}},                // 0.1 mm at 1000 mm/s
       {"focus_scale", {1e-4}},                 // 0.05 mm at the corner at z = 10 mm
+      // mirror_separation's and lens_radial's magnitudes about one axis.
+      {"head_distortion", {1.5e-6, 2e-7, 2.0, -1.0}},
   };
   return t;
 }
