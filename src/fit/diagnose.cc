@@ -196,6 +196,10 @@ Result<Diagnosis> Diagnose(const FieldData& input, const DiagnoseOptions& o) {
   // to every move, is a nuisance offset in every model (the nominal one too), never a cause.
   FieldData moves;
   const bool relative = input.reference >= 0;
+  if (input.reference >= static_cast<int>(input.points.size())) {
+    return InvalidArgument(input.origin + ": the reference row " + std::to_string(input.reference) +
+                           " is not among its " + std::to_string(input.points.size()) + " rows");
+  }
   if (relative) {
     moves.origin = input.origin;
     moves.has_z = input.has_z;
@@ -209,7 +213,9 @@ Result<Diagnosis> Diagnose(const FieldData& input, const DiagnoseOptions& o) {
   const int n = static_cast<int>(data.points.size());
   if (data.DistinctPositions() < 3) {
     return FailedPrecondition(data.origin + ": " + std::to_string(data.DistinctPositions()) +
-                              " distinct commanded positions; a diagnosis needs at least 3");
+                              " distinct commanded positions" +
+                              (relative ? " besides the reference row" : "") +
+                              "; a diagnosis needs at least 3");
   }
   Diagnosis d;
   d.origin = data.origin;
@@ -334,7 +340,7 @@ Result<Diagnosis> Diagnose(const FieldData& input, const DiagnoseOptions& o) {
   // earlier, its tilts would stand in for a rotation not yet entered), and if it takes their
   // place, selection goes on from there.
   for (int round = 0; round < 2; ++round) {
-    while (static_cast<int>(current.size()) < o.max_effects) {
+    while (static_cast<int>(current.size() - nuisance) < o.max_effects) {
       // Every candidate fitted jointly with the model so far, best BIC first.
       struct Candidate {
         const Effect* effect;
@@ -412,7 +418,7 @@ Result<Diagnosis> Diagnose(const FieldData& input, const DiagnoseOptions& o) {
       }
       // Two effects of similar size: neither alone removes much of what both do. Pairs of the
       // strongest candidates are tried jointly under the same tests (BIC, held-out error).
-      if (static_cast<int>(current.size()) + 2 > o.max_effects) break;
+      if (static_cast<int>(current.size() - nuisance) + 2 > o.max_effects) break;
       const size_t top = std::min<size_t>(candidates.size(), 4);
       struct Pair {
         const Candidate* a;
@@ -423,6 +429,7 @@ Result<Diagnosis> Diagnose(const FieldData& input, const DiagnoseOptions& o) {
       std::vector<Pair> pairs;
       for (size_t i = 0; i < top; ++i) {
         for (size_t j = i + 1; j < top; ++j) {
+          if (Excludes(candidates[i].effect->name(), candidates[j].effect->name())) continue;
           std::vector<const Effect*> trial = current;
           trial.push_back(candidates[i].effect);
           trial.push_back(candidates[j].effect);
@@ -462,18 +469,11 @@ Result<Diagnosis> Diagnose(const FieldData& input, const DiagnoseOptions& o) {
     d.effects[k].params = best_fit.effects[k].params;
     d.effects[k].stderrs = best_fit.effects[k].stderrs;
   }
+  std::vector<double> reference_offset_fit;
   if (relative) {
-    const EffectReport& r = d.effects[0];
-    char buf[320];
-    std::snprintf(
-        buf, sizeof buf,
-        "a table of moves from line %d (commanded %.4g, %.4g mm): that row is their zero, "
-        "not a measurement, and left out; its own error, common to every move, fitted "
-        "as an offset dx = %.4g +- %.2g, dy = %.4g +- %.2g mm",
-        input.points[input.reference].line, input.points[input.reference].cmd.x(),
-        input.points[input.reference].cmd.y(), r.params[0], r.stderrs[0], r.params[1],
-        r.stderrs[1]);
-    d.notes.push_back(buf);
+    reference_offset_fit = d.effects[0].params;
+    reference_offset_fit.insert(reference_offset_fit.end(), d.effects[0].stderrs.begin(),
+                                d.effects[0].stderrs.end());
   }
   d.effects.erase(d.effects.begin(), d.effects.begin() + static_cast<long>(nuisance));
   d.extended_rms_mm = best_fit.rms_mm;
@@ -481,6 +481,23 @@ Result<Diagnosis> Diagnose(const FieldData& input, const DiagnoseOptions& o) {
   d.gain = cv > 0 ? d.nominal_cv_rms_mm / cv : 1.0;
   for (const FieldPoint& p : input.points) {
     d.residual_extended.push_back(p.meas - Predict(p, current, best_fit.effects));
+  }
+  if (relative) {
+    // The offset common to every move is the field's own displacement at the reference (which
+    // every move is measured from) plus the reference's measuring error; that error alone is
+    // how far the reference row sits off the fitted field.
+    const Eigen::Vector2d e = d.residual_extended[input.reference];
+    char buf[400];
+    std::snprintf(buf, sizeof buf,
+                  "a table of moves from line %d (commanded %.4g, %.4g mm): that row is their "
+                  "zero, not a measurement, and left out; the offset common to every move (the "
+                  "field at the reference and the reference's own error) is dx = %.4g +- %.2g, "
+                  "dy = %.4g +- %.2g mm, of which the reference's error is %.4g, %.4g mm",
+                  input.points[input.reference].line, input.points[input.reference].cmd.x(),
+                  input.points[input.reference].cmd.y(), reference_offset_fit[0],
+                  reference_offset_fit[2], reference_offset_fit[1], reference_offset_fit[3], e.x(),
+                  e.y());
+    d.notes.push_back(buf);
   }
   // The residuals of the points fitted (without a table's reference row), for the tests below.
   std::vector<Eigen::Vector2d> fitted_residual;
@@ -565,7 +582,16 @@ std::string Diagnosis::Summary() const {
   s += buf;
   if (cause.empty()) {
     s += "; no cause: ";
-    s += unexplained ? "no effect of the library explains it" : "within noise";
+    // "Within noise" only where the noise is known (replicates): a scatter without replicates
+    // (a grid measured by hand) has no structure a test finds, which does not make it noise.
+    if (unexplained) {
+      s += "no effect of the library explains it";
+    } else if (std::isfinite(noise_mm)) {
+      s += "within noise";
+    } else {
+      s += "nothing named, and no structure found in what is left (no replicates: the noise "
+           "level is not known)";
+    }
   } else {
     s += "; cause: ";
     for (size_t k = 0; k < effects.size(); ++k) {

@@ -212,13 +212,13 @@ Result<FieldData> ParseFieldCsv(const std::string& text, const std::string& orig
                            ": no data rows after the header on line " +
                            std::to_string(header_line) + " (columns " + kRequiredList + ")");
   }
-  if (const auto it = data.extra.find("reference"); it != data.extra.end()) {
+  if (const auto it = data.extra.find("move_reference"); it != data.extra.end()) {
     for (size_t i = 0; i < it->second.size(); ++i) {
       const double r = it->second[i];
       const std::string where = origin + ":" + std::to_string(data.points[i].line) + ": ";
       if (r != 0.0 && r != 1.0) {
         return ParseError(where +
-                          "column 'reference' must be 0 or 1 (1 on the row the others "
+                          "column 'move_reference' must be 0 or 1 (1 on the row the others "
                           "were measured from)");
       }
       if (r == 1.0 && data.reference >= 0) {

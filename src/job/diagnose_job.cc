@@ -133,8 +133,10 @@ Result<fit::Diagnosis> RunDiagnose(const std::string& csv_path, const std::strin
     INSITU_RETURN_IF_ERROR(fit::SaveExtension(ext, csv_path, (dir / "extension.yaml").string()));
   }
   cv::Mat img(620, 1240, CV_8UC3, cv::Scalar(255, 255, 255));
+  // A table of moves: the nominal model is the command less the offset every move shares.
   DrawPanel(img, cv::Rect(10, 10, 600, 600), data, d.residual_nominal,
-            "measured - commanded (nominal model)");
+            data.reference >= 0 ? "measured - nominal (command + the moves' common offset)"
+                                : "measured - commanded (nominal model)");
   std::string after = "measured - extended model";
   if (!d.cause.empty()) {
     after += " (";

@@ -579,20 +579,28 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
   auto d = fit::DiagnoseGroups(model, {}, all_candidates, sel);
   if (!d.ok()) return finish(false, "diagnosis: " + d.status().ToString(), d.status().code());
 
-  // Structure left after the causes (LineStructure): an off-library change leaves it. The
-  // causes must account for the change: groups that fit part of a change the library has no
-  // effect for are reported as partial, never as its cause.
+  // Structure left after the causes (LineStructure): an off-library change leaves it. Causes
+  // that took most of the change's structure away (three quarters of its variance) stay named
+  // beside the flag, as in fit::Diagnose: a bumped camera is still named when worn bearings
+  // leave their own structure beside it. Causes that only fitted part of a change they do not
+  // explain are reported as partial, never as its cause.
+  const Structure before = LineStructure(obs, d->residual_nominal, passes, spec.bin_mm);
   const Structure left = LineStructure(obs, d->residual_extended, passes, spec.bin_mm);
   const bool unexplained = left.p < kAlpha && left.structure_mm >= 0.5 * left.noise_mm;
+  const bool explains_most =
+      left.structure_mm * left.structure_mm <= 0.25 * before.structure_mm * before.structure_mm;
   std::vector<fit::GroupReport> partial_groups;
-  if (unexplained && !d->cause.empty()) {
+  if (unexplained && !d->cause.empty() && !explains_most) {
     d->notes.push_back("structure of " + Um(left.structure_mm) + " um rms is left beside " +
-                       Um(left.noise_mm) + " um of noise with the best of the library (" +
-                       Join(d->cause) +
+                       Um(left.noise_mm) + " um of noise (of " + Um(before.structure_mm) +
+                       " um before) with the best of the library (" + Join(d->cause) +
                        "): they fit part of a change they do not explain, so none is named");
     partial_groups = std::move(d->groups);
     d->groups.clear();
     d->cause.clear();
+  }
+  if (d->residual_extended.size() != obs.size()) {
+    d->notes.push_back("the residuals could not be evaluated: no structure test");
   }
   const bool partial = !partial_groups.empty();
   const double extended_rms = partial ? d->nominal_rms : d->extended_rms;
@@ -610,6 +618,7 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
   m["residual_lag1_correlation"] = left.rho;
   m["residual_noise_mm"] = left.noise_mm;
   m["residual_structure_mm"] = left.structure_mm;
+  m["nominal_structure_mm"] = before.structure_mm;
   m["unexplained_p"] = left.p;
   for (const fit::GroupReport& g : d->groups) {
     for (size_t k = 0; k < g.params.size(); ++k) m[g.name + "_" + g.params[k]] = g.values[k];

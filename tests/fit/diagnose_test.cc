@@ -99,6 +99,22 @@ TEST(Diagnose, ATableOfMovesIsMeasuredFromItsReference) {
   EXPECT_TRUE(noted);
 }
 
+// A grid measured by hand (a ruler, a loupe): 60 um of scatter per axis, no replicates, over a
+// small pincushion. Nothing is named, and the report does not call the scatter noise: without
+// replicates its noise is not known.
+TEST(Diagnose, AHandMeasuredGridWithLargeScatterIsNotCalledNoise) {
+  Synth s;
+  s.noise_mm = 0.060;
+  s.effects = {{"mirror_separation", {2e-7, 0.0, 0.0}}};  // 25 um at the corner
+  auto d = Diagnose(Generate(s));
+  ASSERT_TRUE(d.ok()) << d.status().ToString();
+  EXPECT_TRUE(d->cause.empty()) << d->Summary();
+  EXPECT_FALSE(d->unexplained) << d->Summary();
+  EXPECT_EQ(d->Summary().find("within noise"), std::string::npos) << d->Summary();
+  EXPECT_NE(d->Summary().find("no replicates"), std::string::npos) << d->Summary();
+  EXPECT_EQ(d->Summary().find("explains"), std::string::npos) << d->Summary();
+}
+
 TEST(Diagnose, ReplicatesTestTheFitAgainstTheirScatter) {
   Synth s;
   s.replicates = 2;

@@ -40,7 +40,7 @@ TEST(FieldData, ShippedHao2009Parses) {
   EXPECT_EQ(d.points[14].z_cmd_mm, 0.0);
 
   ASSERT_EQ(d.extra.size(), 5u);
-  for (const char* name : {"px_x", "px_y", "comp_h_lsb", "comp_v_lsb", "reference"}) {
+  for (const char* name : {"px_x", "px_y", "comp_h_lsb", "comp_v_lsb", "move_reference"}) {
     ASSERT_TRUE(d.extra.count(name)) << name;
     EXPECT_EQ(d.extra.at(name).size(), 15u) << name;
   }
@@ -280,7 +280,7 @@ INSTANTIATE_TEST_SUITE_P(
     [](const ::testing::TestParamInfo<Malformed>& info) { return std::string(info.param.name); });
 
 TEST(FieldData, TheReferenceOfATableOfMovesIsOneRow) {
-  const std::string head = "x_cmd_mm,y_cmd_mm,x_meas_mm,y_meas_mm,reference\n";
+  const std::string head = "x_cmd_mm,y_cmd_mm,x_meas_mm,y_meas_mm,move_reference\n";
   auto ok = ParseFieldCsv(head + "0,0,0,0,0\n1,0,1.01,0,1\n2,0,2.0,0,0\n", "t.csv");
   ASSERT_TRUE(ok.ok()) << ok.status().ToString();
   EXPECT_EQ(ok->reference, 1);
@@ -293,7 +293,7 @@ TEST(FieldData, TheReferenceOfATableOfMovesIsOneRow) {
   EXPECT_NE(two.status().message().find("line 2"), std::string::npos) << two.status().message();
   auto bad = ParseFieldCsv(head + "0,0,0,0,yes\n", "t.csv");
   ASSERT_FALSE(bad.ok());
-  EXPECT_NE(bad.status().message().find("'reference'"), std::string::npos);
+  EXPECT_NE(bad.status().message().find("'move_reference'"), std::string::npos);
 }
 
 TEST(FieldData, FirstBadRowIsReported) {

@@ -129,6 +129,40 @@ TEST_F(DiagnoseMachine, AChangeOutsideTheLibraryIsUnexplainedAndNothingIsNamed) 
   EXPECT_GT(r->metrics.at("residual_structure_mm"), 2.0 * r->metrics.at("residual_noise_mm"));
 }
 
+// Two changes at once, one in the library and one not: the camera bumped and the bearings worn
+// (60 urad). camera_pose takes most of the structure away and is named; what the bearings leave
+// is flagged beside it.
+TEST_F(DiagnoseMachine, ACauseBesideAChangeOutsideTheLibraryIsStillNamed) {
+  auto r = testing::RunShippedJob(
+      "diagnose_machine.yaml",
+      {"world.camera.look_at_mm=[0.6,-0.1,0.0]", "world.scan_head.repeatability_urad=60",
+       "world.seed=61", "machine.calibration=" + cal_},
+      (dir_ / "bumped_and_worn").string());
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->extra_json.at("cause"), "[\"camera_pose\"]");
+  EXPECT_EQ(r->extra_json.at("unexplained"), "true");
+}
+
+// The camera lens decentred (p1 0.0002 -> 0.01): camera_pose fits part of it (the image's shift)
+// but leaves more than a quarter of its structure's variance: it is reported as partial, and
+// nothing is named.
+TEST_F(DiagnoseMachine, APartialFitIsNotACause) {
+  auto r = testing::RunShippedJob(
+      "diagnose_machine.yaml",
+      {"world.camera.p1=0.01", "world.seed=62", "machine.calibration=" + cal_},
+      (dir_ / "decentred").string());
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->extra_json.at("cause"), "[]");
+  EXPECT_EQ(r->extra_json.at("effects"), "[]");
+  EXPECT_EQ(r->extra_json.at("unexplained"), "true");
+  ASSERT_TRUE(r->extra_json.count("partial"));
+  const auto partial = nlohmann::json::parse(r->extra_json.at("partial"));
+  ASSERT_FALSE(partial.empty());
+  EXPECT_EQ(partial[0]["name"], "camera_pose");
+  EXPECT_EQ(r->metrics.at("gain"), 1.0);
+  EXPECT_EQ(r->metrics.at("extended_cv_rms_mm"), r->metrics.at("nominal_cv_rms_mm"));
+}
+
 TEST_F(DiagnoseMachine, WithoutABaselineItSaysWhatToDo) {
   auto r = testing::RunShippedJob(
       "diagnose_machine.yaml",

@@ -70,8 +70,10 @@ struct Diagnosis {
   std::string unexplained_test;   // "lack_of_fit", "spatial_correlation"
   double unexplained_p = 1.0;     // p-value of that test
   std::string unexplained_where;  // where the largest residuals are, when unexplained
-  std::vector<Eigen::Vector2d> residual_nominal;   // meas - cmd, per point
-  std::vector<Eigen::Vector2d> residual_extended;  // meas - extended model, per point
+  // Per row of the data given, a table's reference row too (for plots): meas - nominal model
+  // (the command; for a table of moves, plus the offset the moves share), meas - extended model.
+  std::vector<Eigen::Vector2d> residual_nominal;
+  std::vector<Eigen::Vector2d> residual_extended;
   std::vector<std::string> notes;                  // candidates that failed to fit, and why
 
   // "the model misses 0.25 mm RMS; cause: two-mirror pincushion (mirror_separation, kappa =

@@ -17,6 +17,9 @@
 //   thermal_drift      ox, oy, g      u += t (ox + g x); v += t (oy + g y)     (needs t_s)
 //   tracking_lag       tau            u -= tau vx; v -= tau vy                  (needs vx, vy)
 //   focus_scale        c              u += c z x; v += c z y                    (needs z_cmd_mm)
+// Beyond the contract's table:
+//   head_distortion    kappa, k, x0, y0   mirror_separation and lens_radial about one centre
+//   head_geometry      f_mm .. gy         the exact two-mirror f-theta head (scan_head.h)
 #pragma once
 
 #include <Eigen/Core>

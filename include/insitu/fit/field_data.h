@@ -5,7 +5,7 @@
 // CSV: a header row, then one row per measurement; lines starting with `#` are comments.
 // Required columns: x_cmd_mm, y_cmd_mm, x_meas_mm, y_meas_mm. Optional: z_cmd_mm (focus
 // shift), t_s (time since start), vx_mm_s and vy_mm_s (beam velocity at the measurement; both
-// or neither), reference (0 or 1: the row a table of moves was measured from; see
+// or neither), move_reference (0 or 1: the row a table of moves was measured from; see
 // FieldData::reference). Other columns are kept by name and ignored by the fits. Repeated
 // commanded positions are replicates.
 #pragma once
@@ -34,7 +34,7 @@ struct FieldData {
   bool has_z = false, has_t = false, has_v = false;
   // Columns beyond the known ones, by name: one value per point (NaN where not a number).
   std::map<std::string, std::vector<double>> extra;
-  // A table of moves (optional column `reference`, 1 on one row): the measured positions are
+  // A table of moves (optional column `move_reference`, 1 on one row): the measured positions are
   // displacements from where the spot was measured at that row's command, so that row reads
   // meas = cmd by definition and carries no measurement, and its own measuring error is common
   // to every other row. -1: absolute positions.
