@@ -1,0 +1,327 @@
+#include "insitu/inspect/groove.h"
+
+#include <ceres/tiny_solver.h>
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+namespace insitu::inspect {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+struct Point {
+  double x, z;
+};
+
+// Median of v (reordered).
+double Median(std::vector<double>* v) {
+  if (v->empty()) return kNaN;
+  const size_t mid = v->size() / 2;
+  std::nth_element(v->begin(), v->begin() + static_cast<long>(mid), v->end());
+  return (*v)[mid];
+}
+
+// Least-squares line z = k x + b.
+bool FitLine(const std::vector<Point>& p, double* k, double* b) {
+  double sx = 0, sz = 0, sxx = 0, sxz = 0;
+  for (const Point& q : p) {
+    sx += q.x;
+    sz += q.z;
+    sxx += q.x * q.x;
+    sxz += q.x * q.z;
+  }
+  const double n = static_cast<double>(p.size());
+  const double den = n * sxx - sx * sx;
+  if (p.size() < 2 || !(std::abs(den) > 0)) return false;
+  *k = (n * sxz - sx * sz) / den;
+  *b = (sz - *k * sx) / n;
+  return true;
+}
+
+// The template of eq. 11 and its residuals z - T(x) over the levelled points, for TinySolver.
+// Parameters (x0, z0, D, w) with D = d tanh(alpha w / 4), the template's deepest point below its
+// surface: in eq. 11's own d, depth and width are strongly correlated when the edges overlap
+// (d grows as w shrinks at the same depth) and Levenberg-Marquardt crawls along that valley; in
+// D they are nearly independent.
+class Template {
+ public:
+  using Scalar = double;
+  enum { NUM_RESIDUALS = Eigen::Dynamic, NUM_PARAMETERS = 4 };
+
+  Template(const std::vector<Point>& p, double alpha) : p_(p), alpha_(alpha) {}
+  int NumResiduals() const { return static_cast<int>(p_.size()); }
+
+  bool operator()(const double* q, double* residuals, double* jacobian) const {
+    const int n = NumResiduals();
+    const double x0 = q[0], z0 = q[1], depth = q[2], w = q[3];
+    const double t = std::tanh(0.25 * alpha_ * w);
+    if (!(t > 0)) return false;
+    const double d = depth / t;
+    // d d / d w at fixed depth.
+    const double dd_dw = -depth * 0.25 * alpha_ * (1.0 - t * t) / (t * t);
+    for (int i = 0; i < n; ++i) {
+      const double a = alpha_ * (p_[i].x - x0 - 0.25 * w);
+      const double b = alpha_ * (p_[i].x - x0 + 0.25 * w);
+      const double ta = std::tanh(a), tb = std::tanh(b);
+      residuals[i] = p_[i].z - (z0 + 0.5 * d * (ta - tb));
+      if (jacobian != nullptr) {
+        const double sa = 1.0 - ta * ta, sb = 1.0 - tb * tb;
+        // Column-major, n rows: d residual / d parameter = -d T / d parameter.
+        jacobian[0 * n + i] = -0.5 * d * alpha_ * (sb - sa);
+        jacobian[1 * n + i] = -1.0;
+        jacobian[2 * n + i] = -0.5 * (ta - tb) / t;
+        jacobian[3 * n + i] = 0.125 * d * alpha_ * (sa + sb) - 0.5 * (ta - tb) * dd_dw;
+      }
+    }
+    return true;
+  }
+
+  double Value(const Eigen::Vector4d& q, double x) const {
+    const double d = q[2] / std::tanh(0.25 * alpha_ * q[3]);
+    return q[1] + 0.5 * d *
+                      (std::tanh(alpha_ * (x - q[0] - 0.25 * q[3])) -
+                       std::tanh(alpha_ * (x - q[0] + 0.25 * q[3])));
+  }
+
+ private:
+  const std::vector<Point>& p_;
+  double alpha_;
+};
+
+// Fits the template to `p` from `q`; false when the solver fails or the result is no groove.
+bool Solve(const std::vector<Point>& p, double alpha, int max_iterations, Eigen::Vector4d* q,
+           int* iterations) {
+  Template f(p, alpha);
+  ceres::TinySolver<Template> solver;
+  solver.options.max_num_iterations = max_iterations;
+  solver.options.function_tolerance = 1e-10;
+  solver.options.parameter_tolerance = 1e-10;
+  const auto summary = solver.Solve(f, q);
+  *iterations += summary.iterations;
+  if (summary.status == ceres::TinySolver<Template>::HIT_MAX_ITERATIONS) return false;
+  return q->allFinite() && (*q)[2] > 0 && (*q)[3] > 0;
+}
+
+}  // namespace
+
+Status GrooveOptions::Validate() const {
+  if (!(expected_width_mm > 0)) return InvalidArgument("expected_width_mm must be > 0");
+  if (!(window_mm >= 0)) return InvalidArgument("window_mm must be >= 0");
+  if (!(alpha_per_mm > 0)) return InvalidArgument("alpha_per_mm must be > 0");
+  if (!(outlier_sigmas > 0)) return InvalidArgument("outlier_sigmas must be > 0");
+  if (max_iterations < 1) return InvalidArgument("max_iterations must be >= 1");
+  return Status::Ok();
+}
+
+Groove FitGroove(const Profile& profile, const GrooveOptions& o) {
+  Groove g;
+  const auto fail = [&g](std::string why) {
+    g.ok = false;
+    g.why = std::move(why);
+    return g;
+  };
+  std::vector<Point> valid;
+  valid.reserve(profile.z_mm.size());
+  for (size_t i = 0; i < profile.z_mm.size(); ++i) {
+    const double z = profile.z_mm[i];
+    if (std::isfinite(z)) valid.push_back({profile.x_start_mm + profile.dx_mm * i, z});
+  }
+  constexpr int kMinPoints = 12;
+  if (static_cast<int>(valid.size()) < kMinPoints) {
+    return fail(std::to_string(valid.size()) + " valid points");
+  }
+
+  // Spikes: a point departing from the median of its five neighbours by more than
+  // outlier_sigmas robust deviations (the groove's flanks are straight, so a median follows
+  // them; at its bottom it does not quite, and a point rejected there comes back below once it
+  // agrees with the fitted template).
+  const int n = static_cast<int>(valid.size());
+  std::vector<double> dev(n), window;
+  for (int i = 0; i < n; ++i) {
+    window.clear();
+    for (int j = std::max(0, i - 2); j <= std::min(n - 1, i + 2); ++j) window.push_back(valid[j].z);
+    dev[i] = valid[i].z - Median(&window);
+  }
+  std::vector<double> absdev(n);
+  for (int i = 0; i < n; ++i) absdev[i] = std::abs(dev[i]);
+  const double sigma = std::max(1.4826 * Median(&absdev), 1e-9);
+  std::vector<Point> kept;
+  kept.reserve(n);
+  for (int i = 0; i < n; ++i) {
+    if (std::abs(dev[i]) <= o.outlier_sigmas * sigma) kept.push_back(valid[i]);
+  }
+  g.outliers = n - static_cast<int>(kept.size());
+
+  // Levelling (eq. 12-13): the deepest point below a line through everything, the groove cut
+  // out +-expected_width about it, the surface line through the rest.
+  double k1 = 0, b1 = 0;
+  if (!FitLine(kept, &k1, &b1)) return fail("no line through the profile");
+  const Point* deepest = &kept[0];
+  double below = -std::numeric_limits<double>::infinity();
+  for (const Point& p : kept) {
+    const double d = (k1 * p.x + b1 - p.z) / std::sqrt(1.0 + k1 * k1);
+    if (d > below) {
+      below = d;
+      deepest = &p;
+    }
+  }
+  const Point bottom = *deepest;
+  if (o.window_mm > 0) {
+    std::vector<Point> in;
+    for (const Point& p : kept) {
+      if (std::abs(p.x - bottom.x) <= o.window_mm) in.push_back(p);
+    }
+    kept.swap(in);
+  }
+  std::vector<Point> surface;
+  int left = 0, right = 0;
+  for (const Point& p : kept) {
+    if (std::abs(p.x - bottom.x) >= o.expected_width_mm) {
+      surface.push_back(p);
+      (p.x < bottom.x ? left : right) += 1;
+    }
+  }
+  if (left < 2 || right < 2) {
+    return fail("too little surface beside the groove (" + std::to_string(left) + " points left, " +
+                std::to_string(right) + " right)");
+  }
+  double k2 = 0, b2 = 0;
+  if (!FitLine(surface, &k2, &b2)) return fail("no surface line");
+  const double theta = std::atan(k2);
+  const double c = std::cos(theta), s = std::sin(theta);
+  const auto level = [c, s](const Point& p) {
+    return Point{c * p.x + s * p.z, -s * p.x + c * p.z};
+  };
+  std::vector<Point> levelled;
+  levelled.reserve(kept.size());
+  for (const Point& p : kept) levelled.push_back(level(p));
+  double z_surface = 0;
+  for (const Point& p : surface) z_surface += level(p).z;
+  z_surface /= static_cast<double>(surface.size());
+  const Point lb = level(bottom);
+  const double depth0 = z_surface - lb.z;
+  double ss_surface = 0;
+  for (const Point& p : surface) {
+    const double r = p.z - (k2 * p.x + b2);
+    ss_surface += r * r;
+  }
+  // A groove stands out of the surface's scatter: its bottom deeper than 6 of the surface's
+  // standard deviations (over ~100 surface points, noise reaches ~3 of them).
+  const double sd_surface = std::sqrt(ss_surface / static_cast<double>(surface.size()));
+  if (!(depth0 > 6.0 * sd_surface)) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf,
+                  "no groove: the deepest point is %.1f um below the surface, whose own scatter "
+                  "is %.1f um",
+                  1e3 * depth0, 1e3 * sd_surface);
+    return fail(buf);
+  }
+  // The width where the profile is below half the depth is half the template's w.
+  double lo = lb.x, hi = lb.x;
+  for (const Point& p : levelled) {
+    if (p.z < z_surface - 0.5 * depth0) {
+      lo = std::min(lo, p.x);
+      hi = std::max(hi, p.x);
+    }
+  }
+  const double w0 = hi > lo ? 2.0 * (hi - lo) : o.expected_width_mm;
+
+  Eigen::Vector4d q(lb.x, z_surface, depth0, w0);
+  if (!Solve(levelled, o.alpha_per_mm, o.max_iterations, &q, &g.iterations)) {
+    return fail("the template's fit did not converge to a groove");
+  }
+  // Outliers against the fitted template, over every point of the window (a bottom point the
+  // spike filter took comes back here), then the fit once more on what agrees with it.
+  {
+    const Template t(levelled, o.alpha_per_mm);
+    std::vector<Point> all;
+    for (const Point& p : valid) {
+      if (o.window_mm <= 0 || std::abs(p.x - bottom.x) <= o.window_mm) all.push_back(level(p));
+    }
+    std::vector<double> r(all.size()), absr(all.size());
+    for (size_t i = 0; i < all.size(); ++i) {
+      r[i] = all[i].z - t.Value(q, all[i].x);
+      absr[i] = std::abs(r[i]);
+    }
+    const double sr = std::max(1.4826 * Median(&absr), 1e-9);
+    std::vector<Point> agree;
+    for (size_t i = 0; i < all.size(); ++i) {
+      if (std::abs(r[i]) <= o.outlier_sigmas * sr) agree.push_back(all[i]);
+    }
+    g.outliers = static_cast<int>(all.size() - agree.size());  // within the window
+    levelled.swap(agree);
+    if (static_cast<int>(levelled.size()) < kMinPoints) return fail("too few points agree");
+    if (!Solve(levelled, o.alpha_per_mm, o.max_iterations, &q, &g.iterations)) {
+      return fail("the template's fit did not converge to a groove");
+    }
+  }
+  const Template t(levelled, o.alpha_per_mm);
+  double ss = 0;
+  for (const Point& p : levelled) {
+    const double r = p.z - t.Value(q, p.x);
+    ss += r * r;
+  }
+  g.ok = true;
+  g.x_mm = c * q[0] - s * q[1];
+  g.z_mm = s * q[0] + c * q[1];
+  g.depth_mm = q[2];
+  g.width_mm = q[3];
+  g.tilt_rad = theta;
+  g.points = static_cast<int>(levelled.size());
+  g.rms_mm = std::sqrt(ss / static_cast<double>(levelled.size()));
+  return g;
+}
+
+Result<AlphaChoice> ChooseAlpha(const std::vector<Profile>& sample, GrooveOptions o,
+                                const std::vector<double>& candidates) {
+  INSITU_RETURN_IF_ERROR(o.Validate());
+  if (candidates.empty()) return InvalidArgument("no alpha candidates");
+  AlphaChoice choice;
+  choice.candidates = candidates;
+  // A candidate whose template fails on more than a tenth of the profiles another one fits is
+  // not the grooves' shape; the others are compared over the same profiles, those that hold a
+  // groove at each of them.
+  std::vector<std::vector<Groove>> fits(candidates.size());
+  std::vector<int> fitted(candidates.size(), 0);
+  for (size_t k = 0; k < candidates.size(); ++k) {
+    if (!(candidates[k] > 0)) return InvalidArgument("alpha candidates must be > 0");
+    o.alpha_per_mm = candidates[k];
+    for (const Profile& p : sample) {
+      fits[k].push_back(FitGroove(p, o));
+      fitted[k] += fits[k].back().ok ? 1 : 0;
+    }
+  }
+  const int most = *std::max_element(fitted.begin(), fitted.end());
+  std::vector<bool> eligible(candidates.size()), common(sample.size(), true);
+  for (size_t k = 0; k < candidates.size(); ++k) {
+    eligible[k] = most > 0 && fitted[k] >= 0.9 * most;
+    if (!eligible[k]) continue;
+    for (size_t i = 0; i < sample.size(); ++i) common[i] = common[i] && fits[k][i].ok;
+  }
+  double best = std::numeric_limits<double>::infinity();
+  for (size_t k = 0; k < candidates.size(); ++k) {
+    double ss = 0;
+    long count = 0;
+    for (size_t i = 0; i < sample.size() && eligible[k]; ++i) {
+      if (!common[i]) continue;
+      ss += fits[k][i].rms_mm * fits[k][i].rms_mm * fits[k][i].points;
+      count += fits[k][i].points;
+    }
+    const double rms = count > 0 ? std::sqrt(ss / static_cast<double>(count)) : kNaN;
+    choice.rms_mm.push_back(rms);
+    if (rms < best) {
+      best = rms;
+      choice.alpha_per_mm = candidates[k];
+    }
+  }
+  if (!std::isfinite(best)) {
+    return FailedPrecondition("no profile of the sample holds a groove at any alpha candidate");
+  }
+  return choice;
+}
+
+}  // namespace insitu::inspect

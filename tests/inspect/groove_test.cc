@@ -1,0 +1,163 @@
+// The groove in one profile (seed 002, section 2.1) on generated profiles: a groove of the
+// template's own shape is recovered to its noise, through a tilted surface, spikes and a flank
+// the sensor could not see; a V-groove (the shape a scribing laser cuts) through the template
+// with alpha chosen from data; profiles with no groove are refused with the reason.
+//
+// Profiles: 10 um spacing over 2 mm (a 2 kHz line profiler's X resolution over a groove),
+// 1 um rms range noise unless stated.
+#include "insitu/inspect/groove.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <random>
+
+namespace insitu::inspect {
+namespace {
+
+struct Shape {
+  double centre_mm = 0.013;
+  double width_mm = 0.5;  // at the surface
+  double depth_mm = 0.1;
+  double surface_mm = 2.0;
+  double slope = 0.0;  // the surface's tilt in the profile
+  double noise_mm = 0.001;
+  bool v_shape = false;  // else the template's (alpha 20)
+  uint64_t seed = 1;
+};
+
+double Depth(const Shape& s, double x) {
+  const double u = x - s.centre_mm;
+  if (s.v_shape) {
+    const double h = 0.5 * s.width_mm;
+    return std::abs(u) < h ? s.depth_mm * (1.0 - std::abs(u) / h) : 0.0;
+  }
+  // Eq. 11 with alpha 20, scaled so that its deepest point is depth_mm.
+  const double a = 20.0;
+  const double d = s.depth_mm / std::tanh(0.25 * a * s.width_mm);
+  return -0.5 * d *
+         (std::tanh(a * (u - 0.25 * s.width_mm)) - std::tanh(a * (u + 0.25 * s.width_mm)));
+}
+
+Profile Make(const Shape& s, const std::function<void(std::vector<float>*)>& spoil = {}) {
+  Profile p;
+  p.x_start_mm = -1.0;
+  p.dx_mm = 0.01;
+  std::mt19937_64 rng(s.seed);
+  std::normal_distribution<double> noise(0.0, s.noise_mm);
+  for (int i = 0; i <= 200; ++i) {
+    const double x = p.x_start_mm + p.dx_mm * i;
+    p.z_mm.push_back(static_cast<float>(s.surface_mm + s.slope * x - Depth(s, x) + noise(rng)));
+  }
+  if (spoil) spoil(&p.z_mm);
+  return p;
+}
+
+// Sizes of the template's parameters against the noise: each edge spans ~2 / alpha = 0.1 mm
+// (10 points) at a slope of ~1, so the centre is known to ~1 um / sqrt(20) = 0.2 um and the
+// width to ~0.3 um; the depth to ~0.3 um (1 um over ~10 bottom and ~100 surface points). The
+// bounds below are about 4 of those.
+TEST(Groove, TheTemplatesOwnShapeIsRecoveredToItsNoise) {
+  for (uint64_t seed = 1; seed <= 5; ++seed) {
+    Shape s;
+    s.seed = seed;
+    const Groove g = FitGroove(Make(s), GrooveOptions{});
+    ASSERT_TRUE(g.ok) << g.why;
+    EXPECT_NEAR(g.x_mm, s.centre_mm, 0.001);
+    EXPECT_NEAR(g.width_mm, s.width_mm, 0.0015);
+    EXPECT_NEAR(g.depth_mm, s.depth_mm, 0.0012);
+    EXPECT_NEAR(g.z_mm, s.surface_mm + s.slope * s.centre_mm, 0.001);
+    EXPECT_NEAR(g.rms_mm, s.noise_mm, 0.2 * s.noise_mm);  // ~190 points: 5 % scatter
+    EXPECT_EQ(g.outliers, 0);
+  }
+}
+
+TEST(Groove, ATiltedSurfaceSpikesAndAnUnseenFlank) {
+  Shape s;
+  s.slope = 0.08;  // the panel's curvature across the profile, or the sensor's roll
+  const Groove g = FitGroove(Make(s,
+                                  [](std::vector<float>* z) {
+                                    for (int i : {20, 60, 150, 170}) (*z)[i] += 0.05f;
+                                    for (int i : {40, 110}) (*z)[i] -= 0.08f;
+                                    // The left flank occluded: the sensor's invalid value.
+                                    for (int i = 80; i < 88; ++i) (*z)[i] = NAN;
+                                  }),
+                             GrooveOptions{});
+  ASSERT_TRUE(g.ok) << g.why;
+  EXPECT_EQ(g.outliers, 6);
+  EXPECT_NEAR(g.tilt_rad, std::atan(s.slope), 0.001);
+  // The groove here is cut vertically into the tilted surface, so across the surface it is
+  // sheared: its bottom lies depth * slope = 8 um downhill of its top's middle, and the
+  // template, symmetric across the surface, centres half way: 4 um downhill (to -x here).
+  EXPECT_NEAR(g.x_mm, s.centre_mm - 0.5 * s.depth_mm * s.slope, 0.0015);
+  EXPECT_NEAR(g.width_mm * std::cos(g.tilt_rad), s.width_mm, 0.002);
+  EXPECT_NEAR(g.depth_mm / std::cos(g.tilt_rad), s.depth_mm, 0.0015);
+}
+
+// A V-groove is not the template's shape. alpha is chosen from data (the best-fitting template
+// over ten profiles), and the centre is found to the noise by symmetry. The template's width and
+// depth on a V are not the V's: its edges round the V's bottom off and trade width against
+// edge sharpness (measured here: at the chosen alpha of 10 /mm the width comes out 10-30 um
+// narrow and the depth 10-12 % shallow; at 20 /mm, seed 002's, 0.1 mm wide and 25 % shallow).
+// Printed, not asserted: what the simulated grooves' shape is decides which definition the
+// inspection reports.
+TEST(Groove, AVGroovesCentreThroughAlphaChosenFromData) {
+  std::vector<Profile> sample;
+  for (uint64_t seed = 1; seed <= 10; ++seed) {
+    Shape s;
+    s.v_shape = true;
+    s.seed = seed;
+    sample.push_back(Make(s));
+  }
+  auto choice = ChooseAlpha(sample, GrooveOptions{});
+  ASSERT_TRUE(choice.ok()) << choice.status().ToString();
+  for (size_t k = 0; k < choice->candidates.size(); ++k) {
+    std::printf("alpha %5.0f /mm: rms %.2f um\n", choice->candidates[k], 1e3 * choice->rms_mm[k]);
+  }
+  // The V's rounded-off bottom costs the template ~2 um rms beside the 1 um noise; a sharper or
+  // blunter template costs more.
+  EXPECT_LT(choice->rms_mm[std::find(choice->candidates.begin(), choice->candidates.end(),
+                                     choice->alpha_per_mm) -
+                           choice->candidates.begin()],
+            0.003);
+  GrooveOptions o;
+  o.alpha_per_mm = choice->alpha_per_mm;
+  Shape s;
+  s.v_shape = true;
+  double e_x = 0, e_w = 0, e_d = 0;
+  for (const Profile& p : sample) {
+    const Groove g = FitGroove(p, o);
+    ASSERT_TRUE(g.ok) << g.why;
+    e_x = std::max(e_x, std::abs(g.x_mm - s.centre_mm));
+    e_w = std::max(e_w, std::abs(g.width_mm - s.width_mm));
+    e_d = std::max(e_d, std::abs(g.depth_mm - s.depth_mm) / s.depth_mm);
+  }
+  std::printf("V-groove, alpha %.0f: largest errors centre %.2f um, width %.2f um, depth %.2f %%\n",
+              choice->alpha_per_mm, 1e3 * e_x, 1e3 * e_w, 100 * e_d);
+  // The centre by symmetry: ~20 edge points at a slope of 0.8 and 1 um noise, 0.3 um; 2 um.
+  EXPECT_LT(e_x, 0.002);
+}
+
+TEST(Groove, ProfilesWithoutAGrooveSayWhy) {
+  Shape flat;
+  flat.depth_mm = 0.0;
+  const Groove g = FitGroove(Make(flat), GrooveOptions{});
+  EXPECT_FALSE(g.ok);
+  EXPECT_FALSE(g.why.empty());
+
+  Profile blind = Make(Shape{});
+  for (size_t i = 5; i < blind.z_mm.size(); ++i) blind.z_mm[i] = NAN;
+  const Groove b = FitGroove(blind, GrooveOptions{});
+  EXPECT_FALSE(b.ok);
+  EXPECT_NE(b.why.find("valid points"), std::string::npos) << b.why;
+
+  GrooveOptions bad;
+  bad.alpha_per_mm = 0;
+  EXPECT_FALSE(bad.Validate().ok());
+}
+
+}  // namespace
+}  // namespace insitu::inspect
