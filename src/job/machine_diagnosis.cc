@@ -38,6 +38,9 @@ struct DiagnoseMachineSpec {
   // calibration itself leaves is not a change of the machine.
   std::string baseline_path;
   bool record_baseline = false;
+  // Each pass focuses on the gauge where the stage took it (focus z = scan focus + stage z), as
+  // a 3D head works; then the focus shifter's scale shows between the passes.
+  bool refocus = true;
 };
 
 Status ReadSpec(const LoadedJob& job, DiagnoseMachineSpec* s, hw::MachineConfig* machine) {
@@ -54,6 +57,7 @@ Status ReadSpec(const LoadedJob& job, DiagnoseMachineSpec* s, hw::MachineConfig*
       d.Read("baseline", &baseline);
       if (!baseline.empty()) s->baseline_path = ResolvePath(job.folder, baseline);
       d.Read("record_baseline", &s->record_baseline);
+      d.Read("refocus", &s->refocus);
       if (d.ok() && s->stage_z_mm.empty()) d.Fail("stage_z_mm", "must list at least one height");
       if (d.ok() && !(s->bin_mm > 0)) d.Fail("bin_mm", "must be > 0");
       if (d.ok()) d.FailFromValidate(s->selection.Validate());
@@ -94,9 +98,19 @@ struct Pass {
   std::vector<std::pair<Vector3d, Vector3d>> lines;  // commanded ends
 };
 
-enum Group { kCameraPose, kCameraDistortion, kHeadScale, kGalvoOffset, kLightPlane, kStageScale };
+enum Group {
+  kCameraPose,
+  kCameraDistortion,
+  kHeadScale,
+  kGalvoOffset,
+  kLightPlane,
+  kStageScale,
+  kFocusScale
+};
 
-std::vector<fit::ParameterGroup> Candidates(bool two_heights) {
+// stage_scale needs two stage heights; focus_scale two focus heights (the head refocused on the
+// gauge at each), and comes only with stage_scale.
+std::vector<fit::ParameterGroup> Candidates(bool two_heights, bool two_focus = false) {
   std::vector<fit::ParameterGroup> c = {
       {"camera_pose",
        "the camera moved since calibration (bumped, remounted)",
@@ -119,6 +133,13 @@ std::vector<fit::ParameterGroup> Candidates(bool two_heights) {
   };
   if (two_heights) {
     c.push_back({"stage_scale", "the stage moves differ from its commands", {"s_permille"}, {0.5}});
+    if (two_focus) {
+      c.push_back({"focus_scale",
+                   "the field's size changes with the dynamic focus otherwise than calibrated "
+                   "(the focus shifter's travel): x grows by c z x",
+                   {"c_permille_per_mm"},
+                   {0.1}});
+    }
   }
   return c;
 }
@@ -132,7 +153,8 @@ class CellModel : public fit::GroupModel {
         gauge_(gauge),
         passes_(std::move(passes)),
         obs_(std::move(obs)),
-        two_heights_(static_cast<int>(groups.size()) > kStageScale) {
+        two_heights_(static_cast<int>(groups.size()) > kStageScale),
+        has_focus_(static_cast<int>(groups.size()) > kFocusScale) {
     begin_.push_back(0);
     for (const fit::ParameterGroup& g : groups) {
       begin_.push_back(begin_.back() + static_cast<int>(g.params.size()));
@@ -201,8 +223,10 @@ class CellModel : public fit::GroupModel {
       if (it == planes.end()) {
         const auto& [from, to] = passes_[o.pass].lines[o.line];
         Vector3d a = from, b = to;
-        a.head<2>() = scale * a.head<2>() + shift.head<2>();
-        b.head<2>() = scale * b.head<2>() + shift.head<2>();
+        // focus_scale: u += c z x, v += c z y at the line's focus height z.
+        const double focus = has_focus_ ? theta[Begin(kFocusScale)] * 1e-3 : 0.0;
+        a.head<2>() = (scale + focus * a.z()) * a.head<2>() + shift.head<2>();
+        b.head<2>() = (scale + focus * b.z()) * b.head<2>() + shift.head<2>();
         const geometry::PlaneInCamera p =
             geometry::LineLightPlane(cal_, a, b, 20.0, Eigen::Isometry3d::Identity());
         Vector3d n = p.coeffs.head<3>();
@@ -251,7 +275,7 @@ class CellModel : public fit::GroupModel {
   std::vector<Pass> passes_;
   std::vector<Observation> obs_;
   std::vector<Vector2d> normalized_;
-  bool two_heights_;
+  bool two_heights_, has_focus_;
   std::vector<int> begin_;  // group g's parameters: theta[begin_[g] .. begin_[g + 1])
 };
 
@@ -447,16 +471,18 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
     if (!moved.ok()) return finish(false, "stage: " + moved.ToString(), moved.code());
     PhaseProgress progress(options, "scan at stage " + std::to_string(z) + " mm", "lines",
                            spec.scan.scan.line_count());
+    ScanOptions pass_scan = spec.scan.scan;
+    if (spec.refocus) pass_scan.focus_z_mm += z;
     auto scanned = RunScan(
-        machine, spec.scan.scan, spec.scan.extraction, cal,
+        machine, pass_scan, spec.scan.extraction, cal,
         [&](int done, int) { progress.Update(done); }, options.cancel);
     if (!scanned.ok()) return finish(false, scanned.status().ToString(), scanned.status().code());
     Pass pass;
     pass.stage_z_mm = z;
     for (int i = 0; i < spec.scan.scan.line_count(); ++i) {
       const double x = spec.scan.scan.line_x(i);
-      pass.lines.push_back({Vector3d(x, spec.scan.scan.y_start_mm, spec.scan.scan.focus_z_mm),
-                            Vector3d(x, spec.scan.scan.y_end_mm, spec.scan.scan.focus_z_mm)});
+      pass.lines.push_back({Vector3d(x, pass_scan.y_start_mm, pass_scan.focus_z_mm),
+                            Vector3d(x, pass_scan.y_end_mm, pass_scan.focus_z_mm)});
     }
     passes.push_back(pass);
     // Bins along each line: the mean pixel of the points on one step within bin_mm of y.
@@ -489,12 +515,13 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
                       "says, and in the scan's x range?");
   }
   const bool two_heights = spec.stage_z_mm.size() >= 2;
+  const bool two_focus = two_heights && spec.refocus;
   const auto key_of = [&](const Observation& o) {
     return KeyOf(passes[o.pass].stage_z_mm, spec.scan.scan.line_x(o.line), o.step, o.bin);
   };
   if (spec.record_baseline) {
     // The machine as calibrated: its residuals, kept for every later diagnosis.
-    CellModel as_is(cal, gauge, passes, obs, Candidates(two_heights));
+    CellModel as_is(cal, gauge, passes, obs, Candidates(two_heights, two_focus));
     std::vector<int> all(obs.size());
     for (size_t k = 0; k < obs.size(); ++k) all[k] = static_cast<int>(k);
     std::vector<double> r;
@@ -571,7 +598,7 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
     }
     obs = std::move(kept);
   }
-  const std::vector<fit::ParameterGroup> all_candidates = Candidates(two_heights);
+  const std::vector<fit::ParameterGroup> all_candidates = Candidates(two_heights, two_focus);
   CellModel model(cal, gauge, passes, obs, all_candidates);
   // No nuisance: the heights of a level gauge standing on the plate do not depend on where on
   // the plate it stands (its placement only decides which step a point is on, fixed above).
@@ -623,9 +650,11 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
   for (const fit::GroupReport& g : d->groups) {
     for (size_t k = 0; k < g.params.size(); ++k) m[g.name + "_" + g.params[k]] = g.values[k];
   }
-  report.warnings.push_back(
-      "focus_scale (the dynamic focus travel) moves no chief ray: a scan cannot show it, and it "
-      "is not among the candidates");
+  if (!two_focus) {
+    report.warnings.push_back(
+        "focus_scale (the dynamic focus travel) shows only between passes focused at different "
+        "heights (two diagnosis.stage_z_mm and diagnosis.refocus): not among the candidates");
+  }
   if (!two_heights) {
     report.warnings.push_back(
         "one stage height: stage_scale cannot be seen (list two in "

@@ -14,10 +14,10 @@
 //   light_plane        tilt (mrad: every light plane turned about its line), pupil (mm: the exit
 //                      pupil's height, so the planes lean by x / L otherwise)
 //   stage_scale        s (1e-3: the stage's travel against its commands; needs two heights)
+//   focus_scale        c (1e-3 / mm: the field's size against the dynamic focus, x += c z x;
+//                      needs two heights, each pass focused on the gauge: diagnosis.refocus)
 // The gauge's placement does not change the heights of a level gauge on the plate; it only
-// decides which step a point is on (edges kept out by the margin). focus_scale (the dynamic
-// focus travel) moves no chief ray and cannot show in a scan: it is not a candidate, and the
-// report says so. Each point's residual is its height minus its step's; fit::DiagnoseGroups
+// decides which step a point is on (edges kept out by the margin). Each point's residual is its height minus its step's; fit::DiagnoseGroups
 // selects the causes (BIC, and the held-out error over whole scan lines).
 #pragma once
 

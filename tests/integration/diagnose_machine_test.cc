@@ -3,9 +3,9 @@
 // changed in the simulator's world the way a cell changes in use: the camera bumped, its lens
 // swapped, the objective swapped for one of another focal length, the mirrors' zero drifting,
 // the pointer's light planes leaning otherwise (the exit pupil), the stage's travel off, the
-// galvos' bearings worn. Each change of the library must be named first, the worn bearings
-// (outside it) reported unexplained with nothing named; the unchanged machine (a fresh noise
-// realisation) must be named nothing.
+// focus shifter's travel off, the galvos' bearings worn. Each change of the library must be named
+// first, the worn bearings (outside it) reported unexplained with nothing named; the unchanged
+// machine (a fresh noise realisation) must be named nothing.
 //
 // Sizes: the heights of 2 mm bins scatter by ~13 um about the baseline (speckle, both scans).
 // Each change is set to move the gauge's heights by several times that.
@@ -90,6 +90,11 @@ TEST_F(DiagnoseMachine, EachChangeIsNamedFirst) {
       {"pupil", "light_plane", {"world.scan_head.optics.exit_pupil_height_mm=330"}},
       // The stage's screw 0.8 % long: the second pass 32 um lower than commanded.
       {"stage", "stage_scale", {"world.stage.scale_error_ppm=8000"}},
+      // The focus shifter's travel off: the field 0.1 % larger per mm of focus shift (at the
+      // second pass's -4 mm, lines 56 um further out at the gauge's edge).
+      {"focus",
+       "focus_scale",
+       {"world.scan_head.field_effects=[{name: focus_scale, params: [0.001]}]"}},
   };
   int seed = 20;
   for (const Case& c : cases) {
@@ -105,6 +110,12 @@ TEST_F(DiagnoseMachine, EachChangeIsNamedFirst) {
       const double pupil = effects[0]["params"]["pupil_mm"].get<double>();
       EXPECT_GT(pupil, 10.0);
       EXPECT_LT(pupil, 40.0);
+    }
+    if (c.effect == "focus_scale") {
+      // c = 1e-3 /mm exactly in the world; the model's form is the world's: 3 standard errors.
+      const double v = effects[0]["params"]["c_permille_per_mm"].get<double>();
+      const double se = effects[0]["stderr"]["c_permille_per_mm"].get<double>();
+      EXPECT_NEAR(v, 1.0, 3.0 * se);
     }
     if (c.effect == "stage_scale") {
       // 8 per mille; the stage's travel is exactly linear in the simulator: 3 standard errors.

@@ -1,4 +1,4 @@
-// The whole cell's diagnosis in randomised trials (slow, ~14 minutes): after the default cell is
+// The whole cell's diagnosis in randomised trials (slow, ~16 minutes): after the default cell is
 // calibrated and its baseline recorded, each machine change is hidden in the world at a random
 // size and sign, ten times, with fresh noise each time, and must be named first in at least 9
 // of 10; the unchanged cell must name nothing in 10 of 10, and a change no effect of the library
@@ -111,6 +111,16 @@ TEST_F(DiagnoseMachineTrials, EachHiddenChangeIsNamedFirstIn9Of10) {
        [](std::mt19937& rng) {
          return std::vector<std::string>{"world.scan_head.optics.exit_pupil_height_mm=" +
                                          Num(310.0 + Sign(rng) * Uniform(rng, 45.0, 150.0))};
+       }},
+      // The focus shifter's scale 0.8-3 per mille per mm off (the field grows by ~3.2 per mille
+      // per mm of focus shift from the exit pupil's geometry alone: a quarter of that to all
+      // of it wrong).
+      {"focus_scale",
+       [](std::mt19937& rng) {
+         return std::vector<std::string>{
+             "world.scan_head.field_effects=[{name: focus_scale, "
+             "params: [" +
+             Num(Sign(rng) * Uniform(rng, 0.8e-3, 3.0e-3)) + "]}]"};
        }},
       // The stage's screw 1.5-5 % off.
       {"stage_scale",
