@@ -1,0 +1,216 @@
+#include "insitu/inspect/contours.h"
+
+#include <pcl/kdtree/kdtree_flann.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+#include <pcl/search/kdtree.h>
+#include <pcl/segmentation/extract_clusters.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace insitu::inspect {
+namespace {
+
+pcl::PointCloud<pcl::PointXYZ>::Ptr Cloud(const Points2& points) {
+  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
+  cloud->reserve(points.size());
+  for (const Eigen::Vector2d& p : points) {
+    cloud->push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()), 0.0f));
+  }
+  return cloud;
+}
+
+Eigen::Vector2d Centroid(const Points2& points) {
+  Eigen::Vector2d c = Eigen::Vector2d::Zero();
+  for (const Eigen::Vector2d& p : points) c += p;
+  return points.empty() ? c : Eigen::Vector2d(c / static_cast<double>(points.size()));
+}
+
+// For each query point, the index of the nearest point of `to` (float precision of the search:
+// ~1e-7 relative, 0.1 um on a 1 m panel, far below any groove's error).
+std::vector<int> Nearest(const Points2& query, const Points2& to) {
+  pcl::KdTreeFLANN<pcl::PointXYZ> tree;
+  tree.setInputCloud(Cloud(to));
+  std::vector<int> out(query.size(), -1);
+  std::vector<int> index(1);
+  std::vector<float> d2(1);
+  for (size_t i = 0; i < query.size(); ++i) {
+    const pcl::PointXYZ q(static_cast<float>(query[i].x()), static_cast<float>(query[i].y()), 0.f);
+    if (tree.nearestKSearch(q, 1, index, d2) == 1) out[i] = index[0];
+  }
+  return out;
+}
+
+// The design polyline (its points in order; closed when its ends are as close as its points)
+// resampled every `step` mm, so that it is as dense as the measured points: eq. 22's rule
+// takes, of the measured points claiming a design point, the farthest, which is a correction
+// at a corner only when both sets are equally dense.
+Points2 Resample(const Points2& polyline, double step) {
+  if (polyline.size() < 2 || !(step > 0)) return polyline;
+  std::vector<double> seg;
+  for (size_t i = 0; i + 1 < polyline.size(); ++i) {
+    seg.push_back((polyline[i + 1] - polyline[i]).norm());
+  }
+  std::vector<double> sorted = seg;
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2),
+                   sorted.end());
+  Points2 chain = polyline;
+  if ((polyline.back() - polyline.front()).norm() <= 1.5 * sorted[sorted.size() / 2]) {
+    chain.push_back(polyline.front());
+  }
+  Points2 out;
+  double carry = 0.0;  // distance along the chain to the next sample
+  for (size_t i = 0; i + 1 < chain.size(); ++i) {
+    const Eigen::Vector2d a = chain[i], b = chain[i + 1];
+    const double len = (b - a).norm();
+    double t = carry;
+    while (t < len) {
+      out.push_back(a + (b - a) * (t / len));
+      t += step;
+    }
+    carry = t - len;
+  }
+  if (out.empty()) out.push_back(polyline.front());
+  return out;
+}
+
+}  // namespace
+
+std::vector<std::vector<int>> ClusterPoints(const Points2& points, double tolerance_mm,
+                                            int min_points) {
+  std::vector<std::vector<int>> clusters;
+  if (points.empty() || !(tolerance_mm > 0)) return clusters;
+  const auto cloud = Cloud(points);
+  pcl::search::KdTree<pcl::PointXYZ>::Ptr tree(new pcl::search::KdTree<pcl::PointXYZ>);
+  tree->setInputCloud(cloud);
+  pcl::EuclideanClusterExtraction<pcl::PointXYZ> ec;
+  ec.setClusterTolerance(tolerance_mm);
+  ec.setMinClusterSize(std::max(1, min_points));
+  ec.setMaxClusterSize(static_cast<int>(points.size()));
+  ec.setSearchMethod(tree);
+  ec.setInputCloud(cloud);
+  std::vector<pcl::PointIndices> found;
+  ec.extract(found);
+  for (const pcl::PointIndices& c : found) {
+    std::vector<int> idx(c.indices.begin(), c.indices.end());
+    std::sort(idx.begin(), idx.end());
+    clusters.push_back(std::move(idx));
+  }
+  // In the order of their first point: stable across runs whatever PCL's order.
+  std::sort(clusters.begin(), clusters.end(),
+            [](const std::vector<int>& a, const std::vector<int>& b) { return a[0] < b[0]; });
+  return clusters;
+}
+
+std::vector<ContourMatch> MatchContours(const std::vector<Points2>& design,
+                                        const std::vector<Points2>& measured,
+                                        double max_distance_mm) {
+  std::vector<ContourMatch> pairs;
+  for (size_t m = 0; m < measured.size(); ++m) {
+    if (measured[m].empty()) continue;
+    const Eigen::Vector2d cm = Centroid(measured[m]);
+    for (size_t d = 0; d < design.size(); ++d) {
+      if (design[d].empty()) continue;
+      pairs.push_back(
+          {static_cast<int>(d), static_cast<int>(m), (Centroid(design[d]) - cm).norm()});
+    }
+  }
+  std::sort(pairs.begin(), pairs.end(), [](const ContourMatch& a, const ContourMatch& b) {
+    return a.centroid_distance_mm < b.centroid_distance_mm;
+  });
+  std::vector<bool> design_taken(design.size(), false), measured_taken(measured.size(), false);
+  std::vector<ContourMatch> out;
+  for (const ContourMatch& p : pairs) {
+    if (p.centroid_distance_mm > max_distance_mm) break;
+    if (design_taken[p.design] || measured_taken[p.measured]) continue;
+    design_taken[p.design] = measured_taken[p.measured] = true;
+    out.push_back(p);
+  }
+  std::sort(out.begin(), out.end(),
+            [](const ContourMatch& a, const ContourMatch& b) { return a.measured < b.measured; });
+  return out;
+}
+
+static Result<ContourError> CompareResampled(const Points2& design, const Points2& measured) {
+  ContourError e;
+  const Eigen::Vector2d c = Centroid(design);
+  e.offset_mm = c - Centroid(measured);  // eq. 21
+  Points2 moved(measured);
+  for (Eigen::Vector2d& q : moved) q += e.offset_mm;
+
+  // Eq. 22: each design point's nearest measured point, corrected by the measured points that
+  // take the design point for theirs (at a corner the nearest is a shortcut across it).
+  const std::vector<int> from_design = Nearest(design, moved);
+  const std::vector<int> from_measured = Nearest(moved, design);
+  std::vector<int> claimed(design.size(), -1);  // the farthest measured point claiming each
+  for (size_t k = 0; k < moved.size(); ++k) {
+    const int i = from_measured[k];
+    if (i < 0) continue;
+    if (claimed[i] < 0 || (moved[k] - design[i]).norm() > (moved[claimed[i]] - design[i]).norm()) {
+      claimed[i] = static_cast<int>(k);
+    }
+  }
+  e.matched.resize(design.size());
+  for (size_t i = 0; i < design.size(); ++i) {
+    int j = from_design[i];
+    const int k = claimed[i];
+    if (k >= 0 && (moved[j] - design[i]).norm() < (moved[k] - design[i]).norm()) j = k;
+    e.matched[i] = j;
+  }
+
+  // The scale about the design's centroid. Nearest points see only what moved across the line
+  // (along it, a point's match slides with it), so the scale is fitted to the displacements
+  // across the line: (Q' - P) . n = s (P - c) . n, n the design's normal there.
+  const size_t n_design = design.size();
+  std::vector<Eigen::Vector2d> normal(n_design, Eigen::Vector2d::Zero());
+  for (size_t i = 0; i < n_design; ++i) {
+    const Eigen::Vector2d t = design[std::min(i + 1, n_design - 1)] - design[i > 0 ? i - 1 : 0];
+    if (t.norm() > 0) normal[i] = Eigen::Vector2d(-t.y(), t.x()) / t.norm();
+  }
+  // Fitted over the measured points, each against the design point nearest it: the design is a
+  // clean, dense line, so that is the foot of the perpendicular and the distance across the line
+  // is unbiased. (From the design side, the nearest of wandering centres is biased towards the
+  // line, by a few percent of the scale once the wander reaches the centres' spacing.)
+  double num = 0, den = 0;
+  for (size_t k = 0; k < moved.size(); ++k) {
+    const int l = from_measured[k];
+    if (l < 0) continue;
+    const double pn = (design[l] - c).dot(normal[l]);
+    num += pn * (moved[k] - design[l]).dot(normal[l]);
+    den += pn * pn;
+  }
+  const double s = den > 0 ? num / den : 0.0;
+  e.scale_pct = 100.0 * s;
+  double ss = 0;
+  for (size_t i = 0; i < n_design; ++i) {
+    const Eigen::Vector2d d = moved[e.matched[i]] - design[i];
+    const double local = d.norm();
+    // Across the line, less the scale's share there.
+    const double after = std::abs(d.dot(normal[i]) - s * (design[i] - c).dot(normal[i]));
+    e.local_mm.push_back(local);
+    e.local_after_scale_mm.push_back(after);
+    e.error_mm.push_back(e.offset_mm.norm() + local);  // eq. 23
+    ss += after * after;
+    e.local_max_mm = std::max(e.local_max_mm, after);
+  }
+  e.local_rms_mm = std::sqrt(ss / static_cast<double>(design.size()));
+  e.design = design;
+  return e;
+}
+
+Result<ContourError> CompareContour(const Points2& design, const Points2& measured) {
+  if (design.empty() || measured.empty()) {
+    return InvalidArgument(std::string("an empty ") + (design.empty() ? "design" : "measured") +
+                           " contour");
+  }
+  // The measured centres' spacing along the line: the design's length over their number (their
+  // nearest-neighbour distance would shrink with their wander across the line).
+  double length = 0;
+  for (size_t i = 0; i + 1 < design.size(); ++i) length += (design[i + 1] - design[i]).norm();
+  const double spacing = length / static_cast<double>(measured.size());
+  return CompareResampled(spacing > 0 ? Resample(design, spacing) : design, measured);
+}
+
+}  // namespace insitu::inspect

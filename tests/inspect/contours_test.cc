@@ -1,0 +1,108 @@
+// Contours from groove centres (seed 002, section 2.2) on generated contours: clustering splits
+// them, centroids match them whatever their order, and a contour displaced, stretched and
+// wavering is split into its offset (eq. 21), scale and local error (eq. 22-23).
+#include "insitu/inspect/contours.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+namespace insitu::inspect {
+namespace {
+
+using Eigen::Vector2d;
+
+// A w x h rectangle about `centre`, a point every `step` mm along it.
+Points2 Rectangle(const Vector2d& centre, double w, double h, double step) {
+  Points2 out;
+  const Vector2d corners[5] = {
+      {-w / 2, -h / 2}, {w / 2, -h / 2}, {w / 2, h / 2}, {-w / 2, h / 2}, {-w / 2, -h / 2}};
+  for (int k = 0; k < 4; ++k) {
+    const Vector2d a = corners[k], b = corners[k + 1];
+    const int n = static_cast<int>(std::round((b - a).norm() / step));
+    for (int i = 0; i < n; ++i) out.push_back(centre + a + (b - a) * (static_cast<double>(i) / n));
+  }
+  return out;
+}
+
+Points2 Circle(const Vector2d& centre, double r, double step) {
+  Points2 out;
+  const int n = static_cast<int>(std::round(2 * M_PI * r / step));
+  for (int i = 0; i < n; ++i) {
+    const double t = 2 * M_PI * i / n;
+    out.push_back(centre + r * Vector2d(std::cos(t), std::sin(t)));
+  }
+  return out;
+}
+
+TEST(Contours, ClusteringSplitsContoursAndDropsStrays) {
+  Points2 all = Rectangle({0, 0}, 80, 40, 0.2);
+  const Points2 circle = Circle({120, 0}, 20, 0.2);
+  all.insert(all.end(), circle.begin(), circle.end());
+  all.push_back({60, 60});  // two stray centres (a profile across a scratch)
+  all.push_back({60.1, 60});
+  const auto clusters = ClusterPoints(all, 5.0);
+  ASSERT_EQ(clusters.size(), 2u);
+  EXPECT_EQ(clusters[0].size(), Rectangle({0, 0}, 80, 40, 0.2).size());
+  EXPECT_EQ(clusters[1].size(), circle.size());
+}
+
+TEST(Contours, CentroidsMatchContoursWhateverTheirOrder) {
+  const std::vector<Points2> design = {Rectangle({0, 0}, 80, 40, 0.5), Circle({120, 0}, 20, 0.5),
+                                       Circle({120, 80}, 10, 0.5)};
+  std::vector<Points2> measured;
+  for (int k : {2, 0}) {  // the third contour not engraved; the order scrambled
+    Points2 m = design[k];
+    for (Vector2d& p : m) p += Vector2d(0.3, -0.2);
+    measured.push_back(m);
+  }
+  const auto matches = MatchContours(design, measured, 5.0);
+  ASSERT_EQ(matches.size(), 2u);
+  EXPECT_EQ(matches[0].measured, 0);
+  EXPECT_EQ(matches[0].design, 2);
+  EXPECT_EQ(matches[1].measured, 1);
+  EXPECT_EQ(matches[1].design, 0);
+  EXPECT_NEAR(matches[0].centroid_distance_mm, std::hypot(0.3, 0.2), 1e-9);
+  // Nothing within reach: unmatched.
+  EXPECT_TRUE(MatchContours(design, {Circle({500, 500}, 5, 0.5)}, 5.0).empty());
+}
+
+// The panel's design rectangle, 80 x 40 mm, engraved 0.3 mm off in x and -0.2 mm in y (the
+// datum), 0.2 % larger about its centre (the clamped panel's bending), with a 10 um rms
+// wander across the line (the machine's dynamics), measured every 10 um along it (a 5 kHz
+// profiler at 50 mm/s). Across the line the wander is 7 um rms; that is the local error left
+// after offset and scale.
+TEST(Contours, AnEngravedContourSplitsIntoOffsetScaleAndLocalError) {
+  const Points2 design = Rectangle({100, 50}, 80, 40, 0.5);
+  Points2 measured;
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> wander(0.0, 0.010);
+  const Vector2d centre(100, 50);
+  for (const Vector2d& p : Rectangle({100, 50}, 80, 40, 0.01)) {
+    const Vector2d q = centre + 1.002 * (p - centre) + Vector2d(0.3, -0.2);
+    measured.push_back(q + Vector2d(wander(rng), wander(rng)) / std::sqrt(2.0));
+  }
+  auto e = CompareContour(design, measured);
+  ASSERT_TRUE(e.ok()) << e.status().ToString();
+  // Eq. 21: E = design centroid - measured centroid; 24,000 points of 7 um wander each: well
+  // under 1 um, plus the resampled design's own centroid (its samples fall 10 um apart, not
+  // exactly where the rectangle's corners are: ~1 um).
+  EXPECT_NEAR(e->offset_mm.x(), -0.3, 0.002);
+  EXPECT_NEAR(e->offset_mm.y(), 0.2, 0.002);
+  EXPECT_NEAR(e->scale_pct, 0.2, 0.005);
+  EXPECT_GT(e->local_rms_mm, 0.005);
+  EXPECT_LT(e->local_rms_mm, 0.009);
+  // Before the scale is taken out, the corners stand 0.2 % x 45 mm = 89 um off.
+  double largest = 0;
+  for (double v : e->local_mm) largest = std::max(largest, v);
+  EXPECT_GT(largest, 0.07);
+  ASSERT_EQ(e->error_mm.size(), e->design.size());
+  EXPECT_GT(e->design.size(), 20 * design.size());  // resampled to the measured 10 um
+  EXPECT_NEAR(e->error_mm[0], e->offset_mm.norm() + e->local_mm[0], 1e-12);  // eq. 23
+
+  EXPECT_FALSE(CompareContour({}, measured).ok());
+}
+
+}  // namespace
+}  // namespace insitu::inspect
