@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <random>
 
 namespace insitu::inspect {
@@ -85,6 +86,9 @@ TEST(Contours, AnEngravedContourSplitsIntoOffsetScaleAndLocalError) {
   }
   auto e = CompareContour(design, measured);
   ASSERT_TRUE(e.ok()) << e.status().ToString();
+  std::printf("offset %.4f %.4f mm, scale %.4f %%, local rms %.1f um, max %.1f um\n",
+              e->offset_mm.x(), e->offset_mm.y(), e->scale_pct, 1e3 * e->local_rms_mm,
+              1e3 * e->local_max_mm);
   // Eq. 21: E = design centroid - measured centroid; 24,000 points of 7 um wander each: well
   // under 1 um, plus the resampled design's own centroid (its samples fall 10 um apart, not
   // exactly where the rectangle's corners are: ~1 um).

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <random>
 
 namespace insitu::inspect {
@@ -61,6 +62,11 @@ TEST(Kinematics, TheMountingIsCalibratedFromABlock) {
   }
   auto cal = CalibrateMount(obs);
   ASSERT_TRUE(cal.ok()) << cal.status().ToString();
+  std::printf(
+      "mount: theta %+.2e psi %+.2e phi %+.2e rad off, translation %.1f um off, rms %.1f um\n",
+      cal->mount.theta_rad - truth.theta_rad, cal->mount.psi_rad - truth.psi_rad,
+      cal->mount.phi_rad - truth.phi_rad,
+      1e3 * (cal->mount.translation_mm - truth.translation_mm).norm(), 1e3 * cal->rms_mm);
   EXPECT_NEAR(cal->mount.theta_rad, truth.theta_rad, 2e-4);
   EXPECT_NEAR(cal->mount.psi_rad, truth.psi_rad, 2e-4);
   EXPECT_NEAR(cal->mount.phi_rad, truth.phi_rad, 2e-4);
