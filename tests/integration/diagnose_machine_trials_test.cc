@@ -1,4 +1,4 @@
-// The whole cell's diagnosis in randomised trials (slow, ~16 minutes): after the default cell is
+// The whole cell's diagnosis in randomised trials (slow, ~8 minutes on two free cores): after the default cell is
 // calibrated and its baseline recorded, each machine change is hidden in the world at a random
 // size and sign, ten times, with fresh noise each time, and must be named first in at least 9
 // of 10; the unchanged cell must name nothing in 10 of 10, and a change no effect of the library
