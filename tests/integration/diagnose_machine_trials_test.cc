@@ -1,8 +1,8 @@
-// The whole cell's diagnosis in randomised trials (slow, ~8 minutes on two free cores): after the default cell is
-// calibrated and its baseline recorded, each machine change is hidden in the world at a random
-// size and sign, ten times, with fresh noise each time, and must be named first in at least 9
-// of 10; the unchanged cell must name nothing in 10 of 10, and a change no effect of the library
-// describes (the galvos' bearings worn: every line settles elsewhere) must be reported
+// The whole cell's diagnosis in randomised trials (slow, ~8 minutes on two free cores): after the
+// default cell is calibrated and its baseline recorded, each machine change is hidden in the world
+// at a random size and sign, ten times, with fresh noise each time, and must be named first in at
+// least 9 of 10; the unchanged cell must name nothing in 10 of 10, and a change no effect of the
+// library describes (the galvos' bearings worn: every line settles elsewhere) must be reported
 // unexplained, with nothing named, in 10 of 10.
 //
 // Sizes: the gauge's binned heights scatter by ~13 um about the baseline. Each range is chosen
