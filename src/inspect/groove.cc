@@ -55,11 +55,13 @@ class Template {
   Template(const std::vector<Point>& p, double alpha) : p_(p), alpha_(alpha) {}
   int NumResiduals() const { return static_cast<int>(p_.size()); }
 
+  // The width enters as its logarithm (q[3] = ln w): every step the solver tries is a groove of
+  // positive width, so the residuals are always defined (TinySolver does not handle a cost
+  // function that declines a step).
   bool operator()(const double* q, double* residuals, double* jacobian) const {
     const int n = NumResiduals();
-    const double x0 = q[0], z0 = q[1], depth = q[2], w = q[3];
-    const double t = std::tanh(0.25 * alpha_ * w);
-    if (!(t > 0)) return false;
+    const double x0 = q[0], z0 = q[1], depth = q[2], w = std::exp(std::clamp(q[3], -30.0, 30.0));
+    const double t = std::max(std::tanh(0.25 * alpha_ * w), 1e-300);
     const double d = depth / t;
     // d d / d w at fixed depth.
     const double dd_dw = -depth * 0.25 * alpha_ * (1.0 - t * t) / (t * t);
@@ -74,12 +76,13 @@ class Template {
         jacobian[0 * n + i] = -0.5 * d * alpha_ * (sb - sa);
         jacobian[1 * n + i] = -1.0;
         jacobian[2 * n + i] = -0.5 * (ta - tb) / t;
-        jacobian[3 * n + i] = 0.125 * d * alpha_ * (sa + sb) - 0.5 * (ta - tb) * dd_dw;
+        jacobian[3 * n + i] = w * (0.125 * d * alpha_ * (sa + sb) - 0.5 * (ta - tb) * dd_dw);
       }
     }
     return true;
   }
 
+  // At parameters (x0, z0, D, w): the width itself, not its logarithm.
   double Value(const Eigen::Vector4d& q, double x) const {
     const double d = q[2] / std::tanh(0.25 * alpha_ * q[3]);
     return q[1] + 0.5 * d *
@@ -100,9 +103,14 @@ bool Solve(const std::vector<Point>& p, double alpha, int max_iterations, Eigen:
   solver.options.max_num_iterations = max_iterations;
   solver.options.function_tolerance = 1e-10;
   solver.options.parameter_tolerance = 1e-10;
-  const auto summary = solver.Solve(f, q);
+  if (!((*q)[3] > 0)) return false;
+  Eigen::Vector4d u = *q;
+  u[3] = std::log((*q)[3]);
+  const auto summary = solver.Solve(f, &u);
   *iterations += summary.iterations;
   if (summary.status == ceres::TinySolver<Template>::HIT_MAX_ITERATIONS) return false;
+  *q = u;
+  (*q)[3] = std::exp(u[3]);
   return q->allFinite() && (*q)[2] > 0 && (*q)[3] > 0;
 }
 
@@ -248,9 +256,19 @@ Groove FitGroove(const Profile& profile, const GrooveOptions& o) {
       absr[i] = std::abs(r[i]);
     }
     const double sr = std::max(1.4826 * Median(&absr), 1e-9);
+    // Only an isolated point is an outlier: one that also stands out from its neighbours'
+    // residuals. Where the template misses the groove's shape (a V's sharp bottom), the
+    // neighbours miss it alike, and those points stay.
     std::vector<Point> agree;
-    for (size_t i = 0; i < all.size(); ++i) {
-      if (std::abs(r[i]) <= o.outlier_sigmas * sr) agree.push_back(all[i]);
+    std::vector<double> near;
+    const int m = static_cast<int>(all.size());
+    for (int i = 0; i < m; ++i) {
+      near.clear();
+      for (int j = std::max(0, i - 2); j <= std::min(m - 1, i + 2); ++j) {
+        if (j != i) near.push_back(r[j]);
+      }
+      const bool isolated = std::abs(r[i] - Median(&near)) > o.outlier_sigmas * sr;
+      if (std::abs(r[i]) <= o.outlier_sigmas * sr || !isolated) agree.push_back(all[i]);
     }
     g.outliers = static_cast<int>(all.size() - agree.size());  // within the window
     levelled.swap(agree);

@@ -231,10 +231,12 @@ class CellModel : public fit::GroupModel {
             geometry::LineLightPlane(cal_, a, b, 20.0, Eigen::Isometry3d::Identity());
         Vector3d n = p.coeffs.head<3>();
         double d = p.coeffs[3];
-        // The plane's normal ~ (L, 0, x): a pupil dL higher turns it by +x dL / L^2 about +y.
+        // The plane's normal ~ (L, 0, x): a pupil dL higher turns it by +x dL / L^2 about +y
+        // (L: the pupil's height above the focal plane; the pass's own focus shift changes it
+        // by ~1 %, left out).
         const double lean = tilt + a.x() * pupil / (height * height);
         if (lean != 0.0) {
-          // Turned about the line (along y through the line's commanded position, z = 0).
+          // Turned about the line (along y through the line's commanded position, at its focus z).
           const Vector3d on(a.x(), 0.0, a.z());
           const Vector3d anchor = on - n * ((n.dot(on) + d) / n.squaredNorm());
           n = Eigen::AngleAxisd(lean, Vector3d::UnitY()) * n;
@@ -345,6 +347,11 @@ Status SaveResidualMap(const std::vector<Vector3d>& points, const std::vector<do
               1, cv::LINE_AA);
   if (!cv::imwrite(path, img)) return DeviceError("cannot write " + path);
   return Status::Ok();
+}
+
+// The baseline's record of how its passes were focused.
+std::string RefocusLine(bool refocus) {
+  return std::string("# refocus: ") + (refocus ? "true" : "false");
 }
 
 constexpr double kAlpha = 0.01;  // false-alarm rate of the structure test
@@ -531,9 +538,8 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
     std::string text =
         "# insitu diagnose_machine baseline: height residuals of the machine as calibrated\n"
         "# calibration: " +
-        spec.scan.machine.calibration_path +
-        "\n"
-        "stage_z_mm,line_x_mm,step,bin,residual_mm\n";
+        spec.scan.machine.calibration_path + "\n" + RefocusLine(spec.refocus) +
+        "\nstage_z_mm,line_x_mm,step,bin,residual_mm\n";
     double ss = 0;
     for (size_t k = 0; k < obs.size(); ++k) {
       char line[160];
@@ -566,10 +572,12 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
       return finish(false, no_baseline);
     }
     std::map<std::string, double> base;
+    std::string refocus_line;
     std::string line;
     int row = 0;
     while (std::getline(in, line)) {
       ++row;
+      if (line.rfind("# refocus:", 0) == 0) refocus_line = line;
       if (line.empty() || line[0] == '#' || line.rfind("stage_z_mm", 0) == 0) continue;
       const size_t comma = line.rfind(',');
       char* end = nullptr;
@@ -582,6 +590,16 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
                                  ": expected stage_z_mm,line_x_mm,step,bin,residual_mm");
       }
       base[line.substr(0, comma)] = v;
+    }
+    // The passes must have been focused as this run focuses them: a baseline from passes drawn
+    // at another focus holds the calibration's residuals there, not here.
+    if (refocus_line != RefocusLine(spec.refocus)) {
+      return finish(false,
+                    spec.baseline_path + ": recorded with " +
+                        (refocus_line.empty() ? "no refocus line (an older baseline)"
+                                              : "'" + refocus_line + "'") +
+                        ", this run has '" + RefocusLine(spec.refocus) +
+                        "': record the baseline again (--set diagnosis.record_baseline=true)");
     }
     std::vector<Observation> kept;
     for (Observation o : obs) {

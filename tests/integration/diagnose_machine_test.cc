@@ -174,6 +174,24 @@ TEST_F(DiagnoseMachine, APartialFitIsNotACause) {
   EXPECT_EQ(r->metrics.at("extended_cv_rms_mm"), r->metrics.at("nominal_cv_rms_mm"));
 }
 
+// A baseline recorded with the passes focused otherwise holds the calibration's residuals at
+// another focus: refused, with what to do.
+TEST_F(DiagnoseMachine, ABaselineFocusedOtherwiseIsRefused) {
+  const std::string other = (dir_ / "unfocused_baseline.csv").string();
+  ASSERT_TRUE(
+      testing::RunShippedJob("diagnose_machine.yaml",
+                             {"machine.calibration=" + cal_, "diagnosis.refocus=false",
+                              "diagnosis.record_baseline=true", "diagnosis.baseline=" + other},
+                             (dir_ / "unfocused").string())
+          .ok());
+  auto r = testing::RunShippedJob("diagnose_machine.yaml",
+                                  {"machine.calibration=" + cal_, "diagnosis.baseline=" + other},
+                                  (dir_ / "mismatch").string());
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("record the baseline again"), std::string::npos)
+      << r.status().message();
+}
+
 TEST_F(DiagnoseMachine, WithoutABaselineItSaysWhatToDo) {
   auto r = testing::RunShippedJob(
       "diagnose_machine.yaml",
