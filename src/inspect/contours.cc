@@ -82,19 +82,30 @@ std::vector<std::vector<int>> ClusterPoints(const Points2& points, double tolera
                                             int min_points) {
   std::vector<std::vector<int>> clusters;
   if (points.empty() || !(tolerance_mm > 0)) return clusters;
-  const auto cloud = Cloud(points);
+  // Points that are not numbers (a profile without a groove) belong to no cluster.
+  std::vector<int> finite;
+  Points2 usable;
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (points[i].allFinite()) {
+      finite.push_back(static_cast<int>(i));
+      usable.push_back(points[i]);
+    }
+  }
+  if (usable.empty()) return clusters;
+  const auto cloud = Cloud(usable);
   pcl::search::KdTree<pcl::PointXYZ>::Ptr tree(new pcl::search::KdTree<pcl::PointXYZ>);
   tree->setInputCloud(cloud);
   pcl::EuclideanClusterExtraction<pcl::PointXYZ> ec;
   ec.setClusterTolerance(tolerance_mm);
   ec.setMinClusterSize(std::max(1, min_points));
-  ec.setMaxClusterSize(static_cast<int>(points.size()));
+  ec.setMaxClusterSize(static_cast<int>(usable.size()));
   ec.setSearchMethod(tree);
   ec.setInputCloud(cloud);
   std::vector<pcl::PointIndices> found;
   ec.extract(found);
   for (const pcl::PointIndices& c : found) {
-    std::vector<int> idx(c.indices.begin(), c.indices.end());
+    std::vector<int> idx;
+    for (int k : c.indices) idx.push_back(finite[k]);
     std::sort(idx.begin(), idx.end());
     clusters.push_back(std::move(idx));
   }
@@ -109,10 +120,10 @@ std::vector<ContourMatch> MatchContours(const std::vector<Points2>& design,
                                         double max_distance_mm) {
   std::vector<ContourMatch> pairs;
   for (size_t m = 0; m < measured.size(); ++m) {
-    if (measured[m].empty()) continue;
     const Eigen::Vector2d cm = Centroid(measured[m]);
+    if (measured[m].empty() || !cm.allFinite()) continue;
     for (size_t d = 0; d < design.size(); ++d) {
-      if (design[d].empty()) continue;
+      if (design[d].empty() || !Centroid(design[d]).allFinite()) continue;
       pairs.push_back(
           {static_cast<int>(d), static_cast<int>(m), (Centroid(design[d]) - cm).norm()});
     }
@@ -184,11 +195,30 @@ static Result<ContourError> CompareResampled(const Points2& design, const Points
   const double s = den > 0 ? num / den : 0.0;
   e.scale_pct = 100.0 * s;
   double ss = 0;
+  // The design scaled about its centroid; the local error after the scale is the matched
+  // point's distance to it: to the two segments either side of the design point (at a corner,
+  // one normal alone would measure along the other leg).
+  std::vector<Eigen::Vector2d> scaled(n_design);
+  for (size_t i = 0; i < n_design; ++i) scaled[i] = c + (1.0 + s) * (design[i] - c);
+  const auto to_segment = [](const Eigen::Vector2d& q, const Eigen::Vector2d& a,
+                             const Eigen::Vector2d& b) {
+    const Eigen::Vector2d ab = b - a;
+    const double len2 = ab.squaredNorm();
+    const double t = len2 > 0 ? std::clamp((q - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
+    return (q - (a + t * ab)).norm();
+  };
+  Points2 matched_points(n_design);
+  for (size_t i = 0; i < n_design; ++i) matched_points[i] = moved[e.matched[i]];
+  // The scale moves the line along itself too, so the nearest part of the scaled line is found
+  // anew for each matched point.
+  const std::vector<int> on_scaled = Nearest(matched_points, scaled);
   for (size_t i = 0; i < n_design; ++i) {
-    const Eigen::Vector2d d = moved[e.matched[i]] - design[i];
-    const double local = d.norm();
-    // Across the line, less the scale's share there.
-    const double after = std::abs(d.dot(normal[i]) - s * (design[i] - c).dot(normal[i]));
+    const Eigen::Vector2d& q = matched_points[i];
+    const double local = (q - design[i]).norm();
+    const size_t k = static_cast<size_t>(std::max(0, on_scaled[i]));
+    double after = (q - scaled[k]).norm();
+    if (k > 0) after = std::min(after, to_segment(q, scaled[k - 1], scaled[k]));
+    if (k + 1 < n_design) after = std::min(after, to_segment(q, scaled[k], scaled[k + 1]));
     e.local_mm.push_back(local);
     e.local_after_scale_mm.push_back(after);
     e.error_mm.push_back(e.offset_mm.norm() + local);  // eq. 23
@@ -204,6 +234,14 @@ Result<ContourError> CompareContour(const Points2& design, const Points2& measur
   if (design.empty() || measured.empty()) {
     return InvalidArgument(std::string("an empty ") + (design.empty() ? "design" : "measured") +
                            " contour");
+  }
+  for (const Points2* set : {&design, &measured}) {
+    for (const Eigen::Vector2d& p : *set) {
+      if (!p.allFinite()) {
+        return InvalidArgument(std::string("a ") + (set == &design ? "design" : "measured") +
+                               " point that is not a number");
+      }
+    }
   }
   // The measured centres' spacing along the line: the design's length over their number (their
   // nearest-neighbour distance would shrink with their wander across the line).

@@ -49,13 +49,13 @@ struct ContourError {
   double scale_pct = 0.0;        // measured (after the offset) against design, about its centroid
   std::vector<int> matched;      // per design point: the measured point matched (eq. 22)
   std::vector<double> local_mm;  // per design point: |P_i - Q'_j|
-  // Across the line (along the design's normal), with the scale taken out too: nearest-point
-  // matching sees only what moved across the line.
+  // With the scale taken out too: the matched point's distance to the scaled design line
+  // (nearest-point matching sees only what moved across the line).
   std::vector<double> local_after_scale_mm;
   std::vector<double> error_mm;  // per design point: e_i = |E| + |P_i - Q'_j| (eq. 23)
   double local_rms_mm = 0.0, local_max_mm = 0.0;  // after offset and scale
 };
-// Errors: invalid_argument for an empty contour.
+// Errors: invalid_argument for an empty contour or a point that is not a number.
 Result<ContourError> CompareContour(const Points2& design, const Points2& measured);
 
 }  // namespace insitu::inspect
