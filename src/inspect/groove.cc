@@ -122,6 +122,8 @@ Status GrooveOptions::Validate() const {
   if (!(alpha_per_mm > 0)) return InvalidArgument("alpha_per_mm must be > 0");
   if (!(outlier_sigmas > 0)) return InvalidArgument("outlier_sigmas must be > 0");
   if (max_iterations < 1) return InvalidArgument("max_iterations must be >= 1");
+  if (!(z_resolution_mm > 0)) return InvalidArgument("z_resolution_mm must be > 0");
+  if (!(z_min_mm < z_max_mm)) return InvalidArgument("z_min_mm must be below z_max_mm");
   return Status::Ok();
 }
 
@@ -134,9 +136,13 @@ Groove FitGroove(const Profile& profile, const GrooveOptions& o) {
   };
   std::vector<Point> valid;
   valid.reserve(profile.z_mm.size());
+  const bool cut = std::isfinite(o.expected_x_mm) && o.window_mm > 0;
   for (size_t i = 0; i < profile.z_mm.size(); ++i) {
     const double z = profile.z_mm[i];
-    if (std::isfinite(z)) valid.push_back({profile.x_start_mm + profile.dx_mm * i, z});
+    const double x = profile.x_start_mm + profile.dx_mm * static_cast<double>(i);
+    if (!std::isfinite(z) || z < o.z_min_mm || z > o.z_max_mm) continue;
+    if (cut && std::abs(x - o.expected_x_mm) > o.window_mm) continue;
+    valid.push_back({x, z});
   }
   constexpr int kMinPoints = 12;
   if (static_cast<int>(valid.size()) < kMinPoints) {
@@ -156,7 +162,7 @@ Groove FitGroove(const Profile& profile, const GrooveOptions& o) {
   }
   std::vector<double> absdev(n);
   for (int i = 0; i < n; ++i) absdev[i] = std::abs(dev[i]);
-  const double sigma = std::max(1.4826 * Median(&absdev), 1e-9);
+  const double sigma = std::max(1.4826 * Median(&absdev), o.z_resolution_mm);
   std::vector<Point> kept;
   kept.reserve(n);
   for (int i = 0; i < n; ++i) {
@@ -255,7 +261,7 @@ Groove FitGroove(const Profile& profile, const GrooveOptions& o) {
       r[i] = all[i].z - t.Value(q, all[i].x);
       absr[i] = std::abs(r[i]);
     }
-    const double sr = std::max(1.4826 * Median(&absr), 1e-9);
+    const double sr = std::max(1.4826 * Median(&absr), o.z_resolution_mm);
     // Only an isolated point is an outlier: one that also stands out from its neighbours'
     // residuals. Where the template misses the groove's shape (a V's sharp bottom), the
     // neighbours miss it alike, and those points stay.

@@ -144,6 +144,47 @@ TEST(Groove, AVGroovesCentreThroughAlphaChosenFromData) {
   EXPECT_LT(e_x, 0.002);
 }
 
+// What a real sensor sends: readings quantised to its 1 um counts, a dropout run at its invalid
+// value (-999 here: outside its 0-10 mm range), and on a 3200-point line a second groove 1.5 mm
+// away, deeper than the one the scan plan expects.
+TEST(Groove, QuantisedReadingsDropoutsAndANeighbouringGroove) {
+  Shape s;
+  s.noise_mm = 0.0;
+  Profile p = Make(s, [](std::vector<float>* z) {
+    for (float& v : *z) v = std::round(v * 1000.0f) / 1000.0f;  // 1 um counts
+    for (int i = 40; i < 44; ++i) (*z)[i] = -999.0f;            // a dropout run
+  });
+  GrooveOptions o;
+  o.z_min_mm = 0.0;
+  o.z_max_mm = 10.0;
+  Groove g = FitGroove(p, o);
+  ASSERT_TRUE(g.ok) << g.why;
+  EXPECT_EQ(g.outliers, 0);  // one count is not an outlier, and the dropouts are no points
+  EXPECT_NEAR(g.x_mm, s.centre_mm, 0.001);
+  EXPECT_NEAR(g.depth_mm, s.depth_mm, 0.0012);
+
+  // A longer line: the expected groove at x = 0 and a deeper one at x = 1.5 mm.
+  Profile wide;
+  wide.x_start_mm = -1.0;
+  wide.dx_mm = 0.01;
+  Shape other = s;
+  other.centre_mm = 1.5;
+  other.depth_mm = 0.15;
+  for (int i = 0; i <= 400; ++i) {
+    const double x = wide.x_start_mm + wide.dx_mm * i;
+    wide.z_mm.push_back(static_cast<float>(s.surface_mm - Depth(s, x) - Depth(other, x)));
+  }
+  const Groove deepest = FitGroove(wide, GrooveOptions{});
+  ASSERT_TRUE(deepest.ok) << deepest.why;
+  EXPECT_NEAR(deepest.x_mm, 1.5, 0.001);  // without a plan: the deepest groove
+  GrooveOptions planned;
+  planned.expected_x_mm = 0.0;
+  planned.window_mm = 0.7;
+  const Groove expected = FitGroove(wide, planned);
+  ASSERT_TRUE(expected.ok) << expected.why;
+  EXPECT_NEAR(expected.x_mm, s.centre_mm, 0.001);
+}
+
 TEST(Groove, ProfilesWithoutAGrooveSayWhy) {
   Shape flat;
   flat.depth_mm = 0.0;

@@ -13,6 +13,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -40,6 +41,17 @@ struct GrooveOptions {
   // than this many robust standard deviations (1.4826 MAD of those departures).
   double outlier_sigmas = 6.0;
   int max_iterations = 100;
+  // The sensor's range resolution: the least scatter a deviation is measured against (a flat
+  // run of equal readings has none, and one count more is not an outlier).
+  double z_resolution_mm = 0.001;
+  // The sensor's measuring range: a reading outside it is the sensor's invalid value or a
+  // dropout (seed 002: "returns an abnormal value"), not a point.
+  double z_min_mm = -std::numeric_limits<double>::infinity();
+  double z_max_mm = std::numeric_limits<double>::infinity();
+  // Where along the profile the groove is expected (the scan plan's design line): the profile
+  // is cut to +-window_mm about it before anything else (seed 002 keeps the middle t points),
+  // so a neighbouring groove on a long profile is not taken for it. NaN: the whole profile.
+  double expected_x_mm = std::numeric_limits<double>::quiet_NaN();
   Status Validate() const;
 };
 
