@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -67,6 +68,40 @@ TEST(Contours, CentroidsMatchContoursWhateverTheirOrder) {
   EXPECT_NEAR(matches[0].centroid_distance_mm, std::hypot(0.3, 0.2), 1e-9);
   // Nothing within reach: unmatched.
   EXPECT_TRUE(MatchContours(design, {Circle({500, 500}, 5, 0.5)}, 5.0).empty());
+}
+
+// A corner overshot (seed 002 Fig. 7): the machine runs 0.1 mm past the corner before it turns
+// back to the second leg. Plain nearest points match the design's corner to the path through it
+// (0 off); eq. 22's correction takes the point that claims the corner from the far side, the
+// overshoot's tip, and the corner shows its 0.1 mm.
+TEST(Contours, ACornerOvershootIsSeenAtTheCorner) {
+  Points2 design, measured;
+  for (int i = 0; i <= 1000; ++i) design.push_back({-10.0 + 0.01 * i, 0.0});     // to the corner
+  for (int i = 1; i <= 1000; ++i) design.push_back({0.0, 0.01 * i});             // and up
+  for (int i = 0; i <= 1010; ++i) measured.push_back({-10.0 + 0.01 * i, 0.0});   // past it
+  for (int i = 1; i <= 10; ++i) measured.push_back({0.1 - 0.01 * i, 0.01 * i});  // back
+  for (int i = 11; i <= 1000; ++i) measured.push_back({0.0, 0.01 * i});
+  auto e = CompareContour(design, measured);
+  ASSERT_TRUE(e.ok()) << e.status().ToString();
+  // The design points at the corner (within 15 um of it, after the design was resampled).
+  double largest = 0, nearest_largest = 0;
+  int at_corner = 0;
+  for (size_t i = 0; i < e->design.size(); ++i) {
+    if (e->design[i].norm() > 0.015) continue;
+    ++at_corner;
+    double nearest = 1e9;
+    for (const Vector2d& q : measured) {
+      nearest = std::min(nearest, (q + e->offset_mm - e->design[i]).norm());
+    }
+    nearest_largest = std::max(nearest_largest, nearest);
+    largest = std::max(largest, e->local_mm[i]);
+  }
+  ASSERT_GE(at_corner, 1);
+  // What plain nearest points would say: a sample spacing and the offset the overshoot adds to
+  // the centroid, ~0.01 mm.
+  EXPECT_LT(nearest_largest, 0.02);
+  EXPECT_GT(largest, 0.08);  // eq. 22: the overshoot's tip
+  EXPECT_LT(largest, 0.12);
 }
 
 // The panel's design rectangle, 80 x 40 mm, engraved 0.3 mm off in x and -0.2 mm in y (the
