@@ -146,22 +146,21 @@ bool IsHeadTerm(const std::string& name) {
   return name == "offset" || name == "scale" || name == "skew" || name == "mirror_separation" ||
          name == "lens_radial" || name == "head_distortion";
 }
+// The head's leading-order distortion: the pincushion, the lens's radial term, or both about
+// one axis.
+bool IsDistortionTerm(const std::string& name) {
+  return name == "mirror_separation" || name == "lens_radial" || name == "head_distortion";
+}
 // head_distortion is mirror_separation and lens_radial about one axis: never beside them.
 bool Excludes(const std::string& a, const std::string& b) {
-  const auto pair = [&](const char* x, const char* y) { return a == x && b == y; };
-  return pair("head_distortion", "mirror_separation") || pair("head_distortion", "lens_radial") ||
-         pair("mirror_separation", "head_distortion") || pair("lens_radial", "head_distortion");
+  return a != b && IsDistortionTerm(a) && IsDistortionTerm(b) &&
+         (a == "head_distortion" || b == "head_distortion");
 }
 // The head is tried once a distortion term shows it: a field that is only linear is never put
 // on the head.
 bool HasLeadingHeadTerm(const std::vector<const Effect*>& effects) {
-  for (const Effect* e : effects) {
-    if (e->name() == "mirror_separation" || e->name() == "lens_radial" ||
-        e->name() == "head_distortion") {
-      return true;
-    }
-  }
-  return false;
+  return std::any_of(effects.begin(), effects.end(),
+                     [](const Effect* e) { return IsDistortionTerm(e->name()); });
 }
 
 EffectReport Entered(const Effect& e, double delta_bic, double cv_rms_mm) {
@@ -251,11 +250,9 @@ Result<Diagnosis> Diagnose(const FieldData& input, const DiagnoseOptions& o) {
   // The nominal model (with a table of moves, the reference's error).
   const auto library = EffectLibrary();
   std::vector<const Effect*> current;
-  const Effect* reference_offset = nullptr;
   for (const auto& e : library) {
-    if (relative && e->name() == "offset") reference_offset = e.get();
+    if (relative && e->name() == "offset") current.push_back(e.get());
   }
-  if (reference_offset != nullptr) current.push_back(reference_offset);
   const size_t nuisance = current.size();  // current[0, nuisance): never causes
   auto fit = FitEffects(data, current);
   if (!fit.ok()) return fit.status();
@@ -469,12 +466,6 @@ Result<Diagnosis> Diagnose(const FieldData& input, const DiagnoseOptions& o) {
     d.effects[k].params = best_fit.effects[k].params;
     d.effects[k].stderrs = best_fit.effects[k].stderrs;
   }
-  std::vector<double> reference_offset_fit;
-  if (relative) {
-    reference_offset_fit = d.effects[0].params;
-    reference_offset_fit.insert(reference_offset_fit.end(), d.effects[0].stderrs.begin(),
-                                d.effects[0].stderrs.end());
-  }
   d.effects.erase(d.effects.begin(), d.effects.begin() + static_cast<long>(nuisance));
   d.extended_rms_mm = best_fit.rms_mm;
   d.extended_cv_rms_mm = cv;
@@ -487,6 +478,7 @@ Result<Diagnosis> Diagnose(const FieldData& input, const DiagnoseOptions& o) {
     // every move is measured from) plus the reference's measuring error; that error alone is
     // how far the reference row sits off the fitted field.
     const Eigen::Vector2d e = d.residual_extended[input.reference];
+    const EffectFit& offset = best_fit.effects[0];  // the nuisance, first in every model
     char buf[400];
     std::snprintf(buf, sizeof buf,
                   "a table of moves from line %d (commanded %.4g, %.4g mm): that row is their "
@@ -494,15 +486,14 @@ Result<Diagnosis> Diagnose(const FieldData& input, const DiagnoseOptions& o) {
                   "field at the reference and the reference's own error) is dx = %.4g +- %.2g, "
                   "dy = %.4g +- %.2g mm, of which the reference's error is %.4g, %.4g mm",
                   input.points[input.reference].line, input.points[input.reference].cmd.x(),
-                  input.points[input.reference].cmd.y(), reference_offset_fit[0],
-                  reference_offset_fit[2], reference_offset_fit[1], reference_offset_fit[3], e.x(),
-                  e.y());
+                  input.points[input.reference].cmd.y(), offset.params[0], offset.stderrs[0],
+                  offset.params[1], offset.stderrs[1], e.x(), e.y());
     d.notes.push_back(buf);
   }
   // The residuals of the points fitted (without a table's reference row), for the tests below.
   std::vector<Eigen::Vector2d> fitted_residual;
-  for (const FieldPoint& p : data.points) {
-    fitted_residual.push_back(p.meas - Predict(p, current, best_fit.effects));
+  for (size_t i = 0; i < input.points.size(); ++i) {
+    if (static_cast<int>(i) != input.reference) fitted_residual.push_back(d.residual_extended[i]);
   }
   // Strongest first: by the BIC drop at entry (forward selection already takes them so).
   for (const EffectReport& e : d.effects) d.cause.push_back(e.name);

@@ -25,6 +25,29 @@ double Median(std::vector<double>* v) {
   return (*v)[mid];
 }
 
+// A robust standard deviation of values about zero (1.4826 times their median absolute
+// value), never below `floor`.
+double RobustSigma(const std::vector<double>& v, double floor) {
+  std::vector<double> a(v.size());
+  for (size_t i = 0; i < v.size(); ++i) a[i] = std::abs(v[i]);
+  return std::max(1.4826 * Median(&a), floor);
+}
+
+// Each value's departure from the median of its neighbours within two places, itself among them
+// when `with_self`.
+std::vector<double> FromLocalMedian(const std::vector<double>& v, bool with_self) {
+  const int n = static_cast<int>(v.size());
+  std::vector<double> out(n), near;
+  for (int i = 0; i < n; ++i) {
+    near.clear();
+    for (int j = std::max(0, i - 2); j <= std::min(n - 1, i + 2); ++j) {
+      if (with_self || j != i) near.push_back(v[j]);
+    }
+    out[i] = v[i] - Median(&near);
+  }
+  return out;
+}
+
 // Least-squares line z = k x + b.
 bool FitLine(const std::vector<Point>& p, double* k, double* b) {
   double sx = 0, sz = 0, sxx = 0, sxz = 0;
@@ -82,18 +105,18 @@ class Template {
     return true;
   }
 
-  // At parameters (x0, z0, D, w): the width itself, not its logarithm.
-  double Value(const Eigen::Vector4d& q, double x) const {
-    const double d = q[2] / std::tanh(0.25 * alpha_ * q[3]);
-    return q[1] + 0.5 * d *
-                      (std::tanh(alpha_ * (x - q[0] - 0.25 * q[3])) -
-                       std::tanh(alpha_ * (x - q[0] + 0.25 * q[3])));
-  }
-
  private:
   const std::vector<Point>& p_;
   double alpha_;
 };
+
+// The template at x for parameters (x0, z0, D, w): the width itself, not its logarithm.
+double TemplateValue(double alpha, const Eigen::Vector4d& q, double x) {
+  const double d = q[2] / std::tanh(0.25 * alpha * q[3]);
+  return q[1] + 0.5 * d *
+                    (std::tanh(alpha * (x - q[0] - 0.25 * q[3])) -
+                     std::tanh(alpha * (x - q[0] + 0.25 * q[3])));
+}
 
 // Fits the template to `p` from `q`; false when the solver fails or the result is no groove.
 bool Solve(const std::vector<Point>& p, double alpha, int max_iterations, Eigen::Vector4d* q,
@@ -154,15 +177,10 @@ Groove FitGroove(const Profile& profile, const GrooveOptions& o) {
   // them; at its bottom it does not quite, and a point rejected there comes back below once it
   // agrees with the fitted template).
   const int n = static_cast<int>(valid.size());
-  std::vector<double> dev(n), window;
-  for (int i = 0; i < n; ++i) {
-    window.clear();
-    for (int j = std::max(0, i - 2); j <= std::min(n - 1, i + 2); ++j) window.push_back(valid[j].z);
-    dev[i] = valid[i].z - Median(&window);
-  }
-  std::vector<double> absdev(n);
-  for (int i = 0; i < n; ++i) absdev[i] = std::abs(dev[i]);
-  const double sigma = std::max(1.4826 * Median(&absdev), o.z_resolution_mm);
+  std::vector<double> z(n);
+  for (int i = 0; i < n; ++i) z[i] = valid[i].z;
+  const std::vector<double> dev = FromLocalMedian(z, true);
+  const double sigma = RobustSigma(dev, o.z_resolution_mm);
   std::vector<Point> kept;
   kept.reserve(n);
   for (int i = 0; i < n; ++i) {
@@ -251,29 +269,21 @@ Groove FitGroove(const Profile& profile, const GrooveOptions& o) {
   // Outliers against the fitted template, over every point of the window (a bottom point the
   // spike filter took comes back here), then the fit once more on what agrees with it.
   {
-    const Template t(levelled, o.alpha_per_mm);
     std::vector<Point> all;
     for (const Point& p : valid) {
       if (o.window_mm <= 0 || std::abs(p.x - bottom.x) <= o.window_mm) all.push_back(level(p));
     }
-    std::vector<double> r(all.size()), absr(all.size());
-    for (size_t i = 0; i < all.size(); ++i) {
-      r[i] = all[i].z - t.Value(q, all[i].x);
-      absr[i] = std::abs(r[i]);
-    }
-    const double sr = std::max(1.4826 * Median(&absr), o.z_resolution_mm);
+    std::vector<double> r(all.size());
+    for (size_t i = 0; i < all.size(); ++i)
+      r[i] = all[i].z - TemplateValue(o.alpha_per_mm, q, all[i].x);
+    const double sr = RobustSigma(r, o.z_resolution_mm);
     // Only an isolated point is an outlier: one that also stands out from its neighbours'
     // residuals. Where the template misses the groove's shape (a V's sharp bottom), the
     // neighbours miss it alike, and those points stay.
+    const std::vector<double> off_neighbours = FromLocalMedian(r, false);
     std::vector<Point> agree;
-    std::vector<double> near;
-    const int m = static_cast<int>(all.size());
-    for (int i = 0; i < m; ++i) {
-      near.clear();
-      for (int j = std::max(0, i - 2); j <= std::min(m - 1, i + 2); ++j) {
-        if (j != i) near.push_back(r[j]);
-      }
-      const bool isolated = std::abs(r[i] - Median(&near)) > o.outlier_sigmas * sr;
+    for (size_t i = 0; i < all.size(); ++i) {
+      const bool isolated = std::abs(off_neighbours[i]) > o.outlier_sigmas * sr;
       if (std::abs(r[i]) <= o.outlier_sigmas * sr || !isolated) agree.push_back(all[i]);
     }
     g.outliers = static_cast<int>(all.size() - agree.size());  // within the window
@@ -283,10 +293,9 @@ Groove FitGroove(const Profile& profile, const GrooveOptions& o) {
       return fail("the template's fit did not converge to a groove");
     }
   }
-  const Template t(levelled, o.alpha_per_mm);
   double ss = 0;
   for (const Point& p : levelled) {
-    const double r = p.z - t.Value(q, p.x);
+    const double r = p.z - TemplateValue(o.alpha_per_mm, q, p.x);
     ss += r * r;
   }
   g.ok = true;

@@ -549,11 +549,11 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
     }
     const Status saved = WriteFileAtomically(spec.baseline_path, text);
     if (!saved.ok()) return finish(false, "baseline: " + saved.ToString(), saved.code());
+    const double rms = std::sqrt(ss / obs.size());
     report.metrics["observations"] = static_cast<double>(obs.size());
-    report.metrics["baseline_rms_mm"] = std::sqrt(ss / obs.size());
+    report.metrics["baseline_rms_mm"] = rms;
     report.artifacts["baseline"] = spec.baseline_path;
     // The diagnose keys, for the machine as calibrated: nothing to explain by definition.
-    const double rms = std::sqrt(ss / obs.size());
     const nlohmann::ordered_json as_is_json = {{"rms_mm", rms}, {"cv_rms_mm", rms}};
     report.extra_json["n_points"] = std::to_string(obs.size());
     report.extra_json["nominal"] = as_is_json.dump();
@@ -563,7 +563,7 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
     report.extra_json["gain"] = "1";
     report.extra_json["unexplained"] = "false";
     log->info("diagnose_machine: baseline of {} bins recorded in {} ({:.1f} um rms)", obs.size(),
-              spec.baseline_path, 1e3 * std::sqrt(ss / obs.size()));
+              spec.baseline_path, 1e3 * rms);
     return finish(true, "");
   }
   {

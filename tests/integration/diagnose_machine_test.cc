@@ -33,13 +33,9 @@ class DiagnoseMachine : public ::testing::Test {
     testing::KeepTheWorld();
     dir_ = fs::temp_directory_path() / "insitu_diagnose_machine";
     fs::remove_all(dir_);
-    cal_ = (dir_ / "machine.yaml").string();
-    auto calibrated = testing::QuickCalibrate(cal_, (dir_ / "calibrate").string());
+    auto calibrated = testing::CalibrateWithDiagnoseBaseline(dir_.string());
     ASSERT_TRUE(calibrated.ok()) << calibrated.status().ToString();
-    auto baseline = testing::RunShippedJob(
-        "diagnose_machine.yaml", {"machine.calibration=" + cal_, "diagnosis.record_baseline=true"},
-        (dir_ / "baseline").string());
-    ASSERT_TRUE(baseline.ok()) << baseline.status().ToString();
+    cal_ = *calibrated;
     ASSERT_TRUE(fs::exists(dir_ / "diagnose_baseline.csv"));
   }
 

@@ -38,13 +38,9 @@ class DiagnoseMachineTrials : public ::testing::Test {
     testing::KeepTheWorld();
     dir_ = fs::temp_directory_path() / "insitu_diagnose_machine_trials";
     fs::remove_all(dir_);
-    cal_ = (dir_ / "machine.yaml").string();
-    ASSERT_TRUE(testing::QuickCalibrate(cal_, (dir_ / "calibrate").string()).ok());
-    ASSERT_TRUE(
-        testing::RunShippedJob("diagnose_machine.yaml",
-                               {"machine.calibration=" + cal_, "diagnosis.record_baseline=true"},
-                               (dir_ / "baseline").string())
-            .ok());
+    auto calibrated = testing::CalibrateWithDiagnoseBaseline(dir_.string());
+    ASSERT_TRUE(calibrated.ok()) << calibrated.status().ToString();
+    cal_ = *calibrated;
   }
   struct Verdict {
     std::vector<std::string> cause;

@@ -29,7 +29,8 @@ inline void KeepTheWorld() {
 }
 
 // `a` followed by `b`: a job's --set overrides built up from shared ones.
-inline std::vector<std::string> With(std::vector<std::string> a, const std::vector<std::string>& b) {
+inline std::vector<std::string> With(std::vector<std::string> a,
+                                     const std::vector<std::string>& b) {
   a.insert(a.end(), b.begin(), b.end());
   return a;
 }
@@ -60,6 +61,20 @@ inline Result<job::Report> QuickCalibrate(const std::string& calibration,
   }
   sets.push_back("output.calibration=" + calibration);
   return RunShippedJob("calibrate.yaml", sets, out_dir);
+}
+
+// Where the whole-cell diagnosis starts: the default cell calibrated (QuickCalibrate) into
+// dir/machine.yaml and its diagnose_machine baseline recorded beside it
+// (dir/diagnose_baseline.csv). Returns the calibration's path.
+inline Result<std::string> CalibrateWithDiagnoseBaseline(const std::string& dir) {
+  const std::string calibration = dir + "/machine.yaml";
+  auto calibrated = QuickCalibrate(calibration, dir + "/calibrate");
+  if (!calibrated.ok()) return calibrated.status();
+  auto baseline = RunShippedJob(
+      "diagnose_machine.yaml",
+      {"machine.calibration=" + calibration, "diagnosis.record_baseline=true"}, dir + "/baseline");
+  if (!baseline.ok()) return baseline.status();
+  return calibration;
 }
 
 }  // namespace insitu::testing
