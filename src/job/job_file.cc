@@ -231,7 +231,8 @@ void ReadWorld(ConfigReader& r, sim::WorldOptions* w) {
 
   ConfigReader& p = r.Section("part");
   sim::PartOptions& po = w->part;
-  p.ReadEnum("kind", &po.kind, {"none", "plane", "step_gauge", "arc", "insert", "grid_plate"});
+  p.ReadEnum("kind", &po.kind,
+             {"none", "plane", "step_gauge", "arc", "insert", "grid_plate", "panel"});
   p.ReadArray("position_mm", po.position_mm.data(), 2);
   p.Read("rotation_deg", &po.rotation_deg);
   p.Read("albedo", &po.albedo);
@@ -261,6 +262,12 @@ void ReadWorld(ConfigReader& r, sim::WorldOptions* w) {
   p.Read("grid_plate_thickness_mm", &po.grid_plate_thickness_mm);
   p.Read("grid_plate_chrome_albedo", &po.grid_plate_chrome_albedo);
   p.Read("grid_plate_glass_albedo", &po.grid_plate_glass_albedo);
+  p.ReadArray("panel_size_mm", po.panel_size_mm.data(), 2);
+  p.Read("panel_thickness_mm", &po.panel_thickness_mm);
+  p.Read("maskant_thickness_mm", &po.maskant_thickness_mm);
+  p.Read("panel_bow_mm", &po.panel_bow_mm);
+  p.Read("maskant_ablation_threshold_j_per_cm2", &po.maskant_ablation_threshold_j_per_cm2);
+  p.Read("maskant_ablation_depth_um", &po.maskant_ablation_depth_um);
   if (p.ok()) p.FailFromValidate(po.Validate());
 
   ConfigReader& st = r.Section("stage");
@@ -274,6 +281,42 @@ void ReadWorld(ConfigReader& r, sim::WorldOptions* w) {
   st.Read("plate_size_mm", &w->stage.plate_size_mm);
   st.Read("scale_error_ppm", &w->stage.scale_error_ppm);
   if (st.ok()) st.FailFromValidate(w->stage.Validate());
+
+  ConfigReader& g = r.Section("gantry");
+  sim::GantryOptions& go = w->gantry;
+  g.Read("present", &go.present);
+  g.Read("model", &go.model);
+  g.ReadArray("machine_in_world", go.machine_in_world.data(), 6);
+  g.ReadArray("travel_min_mm", go.travel_min_mm.data(), 3);
+  g.ReadArray("travel_max_mm", go.travel_max_mm.data(), 3);
+  g.Read("c_travel_deg", &go.c_travel_deg);
+  g.Read("speed_mm_per_s", &go.speed_mm_per_s);
+  g.Read("c_speed_deg_per_s", &go.c_speed_deg_per_s);
+  g.Read("settle_ms", &go.settle_ms);
+  g.Read("repeatability_um", &go.repeatability_um);
+  g.Read("encoder_counts_per_mm", &go.encoder_counts_per_mm);
+  if (g.ok()) g.FailFromValidate(go.Validate());
+
+  ConfigReader& pr = r.Section("profiler");
+  sim::ProfilerOptions& pf = w->profiler;
+  pr.Read("present", &pf.present);
+  pr.Read("model", &pf.model);
+  pr.Read("serial", &pf.serial);
+  pr.Read("points", &pf.points);
+  pr.Read("x_spacing_mm", &pf.x_spacing_mm);
+  pr.Read("z_min_mm", &pf.z_min_mm);
+  pr.Read("z_max_mm", &pf.z_max_mm);
+  pr.Read("emitter_height_mm", &pf.emitter_height_mm);
+  pr.Read("triangulation_deg", &pf.triangulation_deg);
+  pr.Read("z_resolution_mm", &pf.z_resolution_mm);
+  pr.Read("noise_um", &pf.noise_um);
+  pr.Read("min_signal", &pf.min_signal);
+  pr.Read("spike_rate", &pf.spike_rate);
+  pr.Read("spike_max_mm", &pf.spike_max_mm);
+  pr.Read("exposure_us", &pf.exposure_us);
+  pr.Read("max_rate_hz", &pf.max_rate_hz);
+  pr.ReadArray("mount", pf.mount.data(), 6);
+  if (pr.ok()) pr.FailFromValidate(pf.Validate());
 
   ConfigReader& fa = r.Section("faults");
   fa.Read("camera_timeout_at_frame", &w->faults.camera_timeout_at_frame);

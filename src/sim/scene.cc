@@ -28,6 +28,26 @@ class PlaneShape : public PartShape {
   double hx_, hy_, t_;
 };
 
+// The clamped skin under its maskant: clamped along x = -+size_x / 2, bowing between.
+class PanelShape : public PartShape {
+ public:
+  explicit PanelShape(const PartOptions& o)
+      : hx_(0.5 * o.panel_size_mm[0]),
+        hy_(0.5 * o.panel_size_mm[1]),
+        top_(o.panel_thickness_mm + o.maskant_thickness_mm),
+        bow_(o.panel_bow_mm) {}
+  double SignedDistance2D(double x, double y) const override { return BoxSd(x, y, hx_, hy_); }
+  double Top(double x, double) const override {
+    const double u = std::clamp(x / hx_, -1.0, 1.0);
+    return top_ + bow_ * 0.5 * (1.0 + std::cos(M_PI * u));
+  }
+  double max_height() const override { return top_ + std::max(bow_, 0.0); }
+  Eigen::Vector2d half_extent() const override { return {hx_, hy_}; }
+
+ private:
+  double hx_, hy_, top_, bow_;
+};
+
 // Steps side by side along x (first height at -x), each running the full length along y.
 class StepGaugeShape : public PartShape {
  public:
@@ -150,6 +170,7 @@ std::unique_ptr<PartShape> MakePartShape(const PartOptions& o) {
   if (o.kind == "step_gauge") return std::make_unique<StepGaugeShape>(o);
   if (o.kind == "arc") return std::make_unique<ArcShape>(o);
   if (o.kind == "insert") return std::make_unique<InsertShape>(o);
+  if (o.kind == "panel") return std::make_unique<PanelShape>(o);
   if (o.kind == "grid_plate") {
     // The reticle is a glass square of the given thickness: a plane part.
     PartOptions plate = o;
@@ -189,6 +210,14 @@ double Scene::TrueHeightAt(double x_mm, double y_mm) const {
   if (shape_->SignedDistance2D(q.x(), q.y()) > 0.0) return 0.0;
   return shape_->Top(q.x(), q.y());
 }
+
+double Scene::DistanceToPartEdge(double x_mm, double y_mm) const {
+  if (!shape_) return std::numeric_limits<double>::infinity();
+  const Eigen::Vector3d q = ToLocal({x_mm, y_mm, stage_z_});
+  return std::abs(shape_->SignedDistance2D(q.x(), q.y()));
+}
+
+double Scene::part_max_height() const { return shape_ ? shape_->max_height() : 0.0; }
 
 int Scene::grid_plate_crosses_per_side() const {
   if (part_.kind != "grid_plate") return -1;

@@ -114,9 +114,10 @@ Status LightOptions::Validate() const {
 
 Status PartOptions::Validate() const {
   if (kind != "none" && kind != "plane" && kind != "step_gauge" && kind != "arc" &&
-      kind != "insert" && kind != "grid_plate") {
+      kind != "insert" && kind != "grid_plate" && kind != "panel") {
     return InvalidArgument(
-        "kind must be one of none, plane, step_gauge, arc, insert, grid_plate, got " + kind);
+        "kind must be one of none, plane, step_gauge, arc, insert, grid_plate, panel, got " +
+        kind);
   }
   if (!(albedo >= 0 && albedo <= 1)) return InvalidValue("albedo", "in [0, 1]", albedo);
   if (!(ablation_depth_um >= 0))
@@ -166,6 +167,76 @@ Status PartOptions::Validate() const {
   }
   if (!(grid_plate_glass_albedo >= 0 && grid_plate_glass_albedo <= 1)) {
     return InvalidValue("grid_plate_glass_albedo", "in [0, 1]", grid_plate_glass_albedo);
+  }
+  for (double s : panel_size_mm) {
+    if (!(s > 1 && s <= 2000)) return InvalidValue("panel_size_mm", "each in (1, 2000]", s);
+  }
+  if (!IsPositiveFinite(panel_thickness_mm))
+    return InvalidValue("panel_thickness_mm", "> 0", panel_thickness_mm);
+  if (!(maskant_thickness_mm >= 0 && maskant_thickness_mm < 5))
+    return InvalidValue("maskant_thickness_mm", "in [0, 5)", maskant_thickness_mm);
+  if (!(std::abs(panel_bow_mm) < 0.05 * panel_size_mm[0])) {
+    return InvalidValue("panel_bow_mm", "within 5 % of the panel's x size", panel_bow_mm);
+  }
+  if (!IsPositiveFinite(maskant_ablation_threshold_j_per_cm2)) {
+    return InvalidValue("maskant_ablation_threshold_j_per_cm2", "> 0",
+                        maskant_ablation_threshold_j_per_cm2);
+  }
+  if (!(maskant_ablation_depth_um >= 0))
+    return InvalidValue("maskant_ablation_depth_um", ">= 0", maskant_ablation_depth_um);
+  return Status::Ok();
+}
+
+Status GantryOptions::Validate() const {
+  for (int k = 0; k < 3; ++k) {
+    if (!(std::isfinite(travel_min_mm[k]) && travel_min_mm[k] < travel_max_mm[k] &&
+          std::isfinite(travel_max_mm[k]))) {
+      return InvalidValue("travel_min_mm", "< travel_max_mm on every axis", travel_min_mm[k]);
+    }
+  }
+  for (double v : machine_in_world) {
+    if (!std::isfinite(v)) return InvalidValue("machine_in_world", "finite", v);
+  }
+  if (!(c_travel_deg >= 0 && c_travel_deg <= 720))
+    return InvalidValue("c_travel_deg", "in [0, 720]", c_travel_deg);
+  if (!IsPositiveFinite(speed_mm_per_s)) return InvalidValue("speed_mm_per_s", "> 0", speed_mm_per_s);
+  if (!IsPositiveFinite(c_speed_deg_per_s))
+    return InvalidValue("c_speed_deg_per_s", "> 0", c_speed_deg_per_s);
+  if (!(settle_ms >= 0 && settle_ms < 1e4)) return InvalidValue("settle_ms", "in [0, 1e4)", settle_ms);
+  if (!(repeatability_um >= 0 && repeatability_um < 1000))
+    return InvalidValue("repeatability_um", "in [0, 1000)", repeatability_um);
+  if (!(encoder_counts_per_mm >= 1 && encoder_counts_per_mm <= 1e6))
+    return InvalidValue("encoder_counts_per_mm", "in [1, 1e6]", encoder_counts_per_mm);
+  return Status::Ok();
+}
+
+Status ProfilerOptions::Validate() const {
+  if (points < 16 || points > 16384) return InvalidValue("points", "in [16, 16384]", points);
+  if (!(x_spacing_mm > 1e-4 && x_spacing_mm < 10))
+    return InvalidValue("x_spacing_mm", "in (1e-4, 10)", x_spacing_mm);
+  if (!(z_min_mm < z_max_mm && std::isfinite(z_min_mm) && std::isfinite(z_max_mm)))
+    return InvalidValue("z_min_mm", "< z_max_mm", z_min_mm);
+  if (!(emitter_height_mm > z_max_mm)) {
+    return InvalidValue("emitter_height_mm", "above the range's top (z_max_mm)", emitter_height_mm);
+  }
+  if (!(triangulation_deg > 1 && triangulation_deg < 80))
+    return InvalidValue("triangulation_deg", "in (1, 80)", triangulation_deg);
+  if (!(z_resolution_mm > 0 && z_resolution_mm < 0.1))
+    return InvalidValue("z_resolution_mm", "in (0, 0.1)", z_resolution_mm);
+  // Coord3D_C16 carries the range in 65535 counts.
+  if ((z_max_mm - z_min_mm) / z_resolution_mm > 65534) {
+    return InvalidValue("z_resolution_mm", "at least the range / 65534 (16-bit output)",
+                        z_resolution_mm);
+  }
+  if (!(noise_um >= 0 && noise_um < 1000)) return InvalidValue("noise_um", "in [0, 1000)", noise_um);
+  if (!(min_signal >= 0 && min_signal < 1)) return InvalidValue("min_signal", "in [0, 1)", min_signal);
+  if (!(spike_rate >= 0 && spike_rate < 0.5)) return InvalidValue("spike_rate", "in [0, 0.5)", spike_rate);
+  if (!(spike_max_mm >= 0)) return InvalidValue("spike_max_mm", ">= 0", spike_max_mm);
+  if (!(exposure_us >= 1 && exposure_us <= 1e5))
+    return InvalidValue("exposure_us", "in [1, 1e5]", exposure_us);
+  if (!IsPositiveFinite(max_rate_hz)) return InvalidValue("max_rate_hz", "> 0", max_rate_hz);
+  for (double v : mount) {
+    if (!std::isfinite(v)) return InvalidValue("mount", "finite", v);
   }
   return Status::Ok();
 }
@@ -219,6 +290,11 @@ Status WorldOptions::Validate() const {
   INSITU_RETURN_IF_ERROR(stage.Validate().Prefixed("stage"));
   INSITU_RETURN_IF_ERROR(board.Validate().Prefixed("board"));
   INSITU_RETURN_IF_ERROR(faults.Validate().Prefixed("faults"));
+  INSITU_RETURN_IF_ERROR(gantry.Validate().Prefixed("gantry"));
+  INSITU_RETURN_IF_ERROR(profiler.Validate().Prefixed("profiler"));
+  if (profiler.present && !gantry.present) {
+    return InvalidArgument("profiler: present needs a gantry to carry it (gantry.present)");
+  }
   if (!(real_time_factor == 0 || (real_time_factor >= 1e-3 && real_time_factor <= 1000))) {
     return InvalidValue("real_time_factor", "0 (as fast as possible) or in [0.001, 1000]",
                         real_time_factor);

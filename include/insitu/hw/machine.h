@@ -1,4 +1,5 @@
-// A machine = scan head + camera + stage + the clock they share, created by name.
+// A machine = scan head + camera + stage (+ a profiler on its axis) + the clock they share,
+// created by name.
 // Only apps choose the backend; everything else works on these interfaces.
 #pragma once
 
@@ -9,9 +10,11 @@
 
 #include "insitu/core/status.h"
 #include "insitu/hw/aravis.h"
+#include "insitu/hw/axis.h"
 #include "insitu/hw/camera.h"
 #include "insitu/hw/lmc.h"
 #include "insitu/hw/operator.h"
+#include "insitu/hw/profiler.h"
 #include "insitu/hw/scanner.h"
 #include "insitu/hw/stage.h"
 #include "insitu/sim/world_options.h"
@@ -40,6 +43,8 @@ struct Machine {
   std::unique_ptr<Stage> stage;
   std::unique_ptr<MachineClock> clock;
   std::unique_ptr<Operator> person;
+  std::unique_ptr<Axis> axis;          // carries the profiler; null if the cell has none
+  std::unique_ptr<Profiler> profiler;  // a line profiler on the axis; null if none
 };
 
 // A GigE Vision camera through Aravis in place of the backend's camera (camera: aravis).

@@ -63,6 +63,11 @@ class Scene {
   double stage_z() const { return stage_z_; }
   // Height of the part's top above the plate at a world xy (0 off the part): for tests.
   double TrueHeightAt(double x_mm, double y_mm) const;
+  // How far a world xy is from the part's outline (mm, either side; infinity without a part):
+  // where the part's top has a wall a ray may graze.
+  double DistanceToPartEdge(double x_mm, double y_mm) const;
+  // The part's highest point above the plate (0 without a part).
+  double part_max_height() const;
   // Reflectance of the part's top at a world xy (on the part's footprint) as a pixel sees it:
   // the part's albedo, or for the grid plate its chrome crosses on glass, weighted over the
   // pixel's footprint by a separable triangle of half-width `half_mm` (0: the point). The

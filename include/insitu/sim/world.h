@@ -6,6 +6,7 @@
 // for tests that measure the algorithms against reality.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -17,6 +18,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include "insitu/core/frame.h"
 #include "insitu/core/status.h"
@@ -156,6 +158,23 @@ class SimWorld {
   // Errors: failed_precondition if the head has no coaxial camera; out_of_range exposure.
   Result<Frame> GrabCoaxial(double exposure_us);
 
+  // The gantry (options.gantry) and the line profiler it carries (options.profiler).
+  // Moves the axes (x, y, z mm, c deg, machine frame) and waits until in position (the clock
+  // advances). Errors: failed_precondition (no gantry), out_of_range (outside the travel).
+  Status MoveGantry(const std::array<double, 4>& xyzc);
+  // What the gantry's encoders read: the position last commanded.
+  std::array<double, 4> gantry_position() const;
+  struct ProfileShot {
+    std::vector<float> z_mm;  // sensor frame; NaN: invalid
+    int64_t encoder = 0;      // the Y axis' encoder, latched with the exposure
+    uint64_t sequence = 0;
+    double t_s = 0.0;
+  };
+  // Exposes the profiler once where the gantry stands (the clock advances).
+  // Errors: failed_precondition (no profiler).
+  Result<ProfileShot> GrabProfile();
+  Status SetProfilerExposure(double exposure_us);
+
   const WorldOptions& options() const { return options_; }
 
   // Truth, for tests only.
@@ -168,6 +187,13 @@ class SimWorld {
   // Every marking pulse so far.
   const std::vector<MarkPulse>& mark_pulses() const { return pulses_; }
   const ListAbortTruth& last_list_abort() const { return last_abort_; }
+  // Where the profiler's frame really is (the gantry's true position and the true mounting).
+  Eigen::Isometry3d TrueSensorInWorld() const;
+  // The surface the profiler sees at a world xy: the part's (or plate's) top less what the
+  // marking laser ablated there, world z (mm).
+  double TrueSurfaceZ(double x_mm, double y_mm) const;
+  // Depth ablated at a world xy (mm).
+  double AblatedDepthMm(double x_mm, double y_mm) const;
 
  private:
   struct PointerProgram {
@@ -220,6 +246,15 @@ class SimWorld {
   MirrorAngles settle_error_;
   std::mt19937_64 head_rng_;
   void NewSettleError();
+  std::unique_ptr<MarkMap> NewMarkMap() const;
+  // The gantry: where it was commanded and where it really is (its repeatability).
+  std::array<double, 4> gantry_command_{0.0, 0.0, 0.0, 0.0};
+  std::array<double, 4> gantry_true_{0.0, 0.0, 0.0, 0.0};
+  double profiler_exposure_us_ = 0.0;
+  uint64_t profile_counter_ = 0;
+  std::mt19937_64 profiler_rng_;
+  // Whether the segment from `from` (on the surface) to `to` passes under the surface.
+  bool SurfaceBlocks(const Eigen::Vector3d& from, const Eigen::Vector3d& to) const;
   FrameTruth truth_;
   // Ambient image (electrons per second per pixel), cached per stage height and binning.
   std::vector<float> ambient_e_per_s_;

@@ -126,7 +126,8 @@ struct LightOptions {
 };
 
 struct PartOptions {
-  std::string kind = "step_gauge";   // none | plane | step_gauge | arc | insert | grid_plate
+  // none | plane | step_gauge | arc | insert | grid_plate | panel
+  std::string kind = "step_gauge";
   std::array<double, 2> position_mm{0.0, 0.0};  // centre of the footprint on the stage
   double rotation_deg = 0.0;                    // about z
   double albedo = 0.45;                         // diffuse reflectance at 680 nm
@@ -177,6 +178,22 @@ struct PartOptions {
   double grid_plate_thickness_mm = 2.3;
   double grid_plate_chrome_albedo = 0.55;
   double grid_plate_glass_albedo = 0.05;
+  // panel: a clamped aircraft-skin panel under chemical-milling maskant (seed 002's sample: 200
+  // x 200 mm of 6061 aluminium under a maskant film, grooves 0.48 mm wide and 0.31 mm deep).
+  // The skin is clamped along its two edges at x = -+ size/2 and bows between them: the top
+  // rises by panel_bow_mm at the middle, as (1 + cos(2 pi x / size_x)) / 2 (a beam clamped at
+  // both ends). `albedo` is the maskant's. The marking laser ablates the maskant by the
+  // logarithmic law with its own threshold and depth per pulse; the aluminium under it stops
+  // the cut (its threshold is ablation_threshold_j_per_cm2 and depth ablation_depth_um), so a
+  // groove cut through the film has the metal as its floor.
+  std::array<double, 2> panel_size_mm{200.0, 200.0};
+  double panel_thickness_mm = 2.0;       // the aluminium skin
+  double maskant_thickness_mm = 0.31;    // the film (seed 002: grooves 0.3124 +- 0.0148 deep)
+  double panel_bow_mm = 0.0;             // clamping bend, + up
+  // Maskant at 1064 nm, ns pulses: an elastomer film (neoprene or styrene-butadiene) loaded with
+  // pigment, far below metals' thresholds.
+  double maskant_ablation_threshold_j_per_cm2 = 0.15;
+  double maskant_ablation_depth_um = 4.0;
 
   Status Validate() const;
 };
@@ -223,6 +240,60 @@ struct BoardOptions {
   Status Validate() const;
 };
 
+// The gantry that carries the line profiler over the stage (seed 002's machine, three linear
+// axes and a C axis about the vertical; A stays at 0 on this machine). Its frame is placed in
+// the world by `machine_in_world` [x, y, z, rx, ry, rz] (mm, deg): the tool frame at axes zero
+// is that frame; moving the axes to (x, y, z, c) puts the tool at machine (x, y, z) turned by c
+// about the machine's z.
+struct GantryOptions {
+  bool present = false;
+  std::string model = "SIM-GANTRY";
+  std::array<double, 6> machine_in_world{0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+  std::array<double, 3> travel_min_mm{-160.0, -160.0, 0.0};
+  std::array<double, 3> travel_max_mm{160.0, 160.0, 250.0};
+  double c_travel_deg = 360.0;          // C moves in [-c_travel, c_travel]
+  double speed_mm_per_s = 200.0;
+  double c_speed_deg_per_s = 90.0;
+  double settle_ms = 20.0;
+  // Where each move really ends against its command (the positioning repeatability, seed 002:
+  // <= 0.05 mm after compensation on its five-axis machine; a ground-screw gantry does 2 um).
+  double repeatability_um = 2.0;
+  double encoder_counts_per_mm = 1000.0;
+
+  Status Validate() const;
+};
+
+// A 2D laser line profiler on the gantry's tool (seed 002: an SR7140, 3200 points 25 um apart,
+// +-24 um in z). The laser fan comes from `emitter_height_mm` above the middle of the line, the
+// camera looks at the line from the sensor's -y side at `triangulation_deg` from the laser
+// plane; a point is invalid where the fan cannot reach it or the camera cannot see it (a
+// groove's steep flank), where it lies outside the range, or where too little light returns.
+// `mount` is the sensor frame in the tool frame [x, y, z, rx, ry, rz] (mm, deg; rotations
+// about x, then y, then z): the truth the mounting calibration must find.
+struct ProfilerOptions {
+  bool present = false;
+  std::string model = "SIM-LP3200";
+  std::string serial = "SIM-P001";
+  int points = 3200;
+  double x_spacing_mm = 0.025;
+  double z_min_mm = -10.0;
+  double z_max_mm = 10.0;
+  double emitter_height_mm = 140.0;   // fan source above the reference point
+  double triangulation_deg = 25.0;
+  double z_resolution_mm = 0.0005;    // one count of the 16-bit range output over +-10 mm
+  double noise_um = 1.5;              // speckle: 1 sigma of one point's range
+  double min_signal = 0.02;           // albedo x cos(incidence) under which no line is seen
+  double spike_rate = 2e-4;           // points read off a second reflection (per point)
+  double spike_max_mm = 0.3;
+  double exposure_us = 100.0;
+  double max_rate_hz = 5000.0;
+  // As built: the machine builder's drawing says [0, -40, -140, 0, 0, 0]; no sensor sits
+  // exactly there.
+  std::array<double, 6> mount{0.35, -40.2, -139.6, 0.25, -0.15, 0.6};
+
+  Status Validate() const;
+};
+
 // Device faults the simulated machine injects (for the daemon's fault handling): each fires
 // once its count is reached; -1 never. Counted per machine (per job).
 struct FaultOptions {
@@ -244,6 +315,8 @@ struct WorldOptions {
   StageOptions stage;
   BoardOptions board;
   FaultOptions faults;
+  GantryOptions gantry;
+  ProfilerOptions profiler;
   uint64_t seed = 1;
   // Virtual seconds per wall-clock second: 0 runs as fast as the computer can (tests, CI);
   // 1 runs the devices in real time, as a daemon driving a real cell would see them.

@@ -202,6 +202,72 @@ class SimOperator : public Operator {
   std::shared_ptr<sim::SimWorld> world_;
 };
 
+// The gantry: x, y, z and C; no A axis on this machine.
+class SimAxis : public Axis {
+ public:
+  explicit SimAxis(std::shared_ptr<sim::SimWorld> world) : world_(std::move(world)) {}
+  AxisInfo info() const override {
+    const sim::GantryOptions& g = world_->options().gantry;
+    AxisInfo i;
+    i.model = g.model;
+    i.min = {g.travel_min_mm[0], g.travel_min_mm[1], g.travel_min_mm[2], 0.0, -g.c_travel_deg};
+    i.max = {g.travel_max_mm[0], g.travel_max_mm[1], g.travel_max_mm[2], 0.0, g.c_travel_deg};
+    i.speed_mm_per_s = g.speed_mm_per_s;
+    i.encoder_counts_per_mm = g.encoder_counts_per_mm;
+    return i;
+  }
+  Result<AxisPose> Position() const override {
+    const std::array<double, 4> p = world_->gantry_position();
+    return AxisPose{p[0], p[1], p[2], 0.0, p[3]};
+  }
+  Status MoveTo(const AxisPose& pose) override {
+    INSITU_RETURN_IF_ERROR(CheckTravel(pose, info()));
+    return world_->MoveGantry({pose.x_mm, pose.y_mm, pose.z_mm, pose.c_deg});
+  }
+
+ private:
+  std::shared_ptr<sim::SimWorld> world_;
+};
+
+class SimProfiler : public Profiler {
+ public:
+  explicit SimProfiler(std::shared_ptr<sim::SimWorld> world) : world_(std::move(world)) {}
+  ProfilerInfo info() const override {
+    const sim::ProfilerOptions& o = world_->options().profiler;
+    ProfilerInfo i;
+    i.model = o.model;
+    i.serial = o.serial;
+    i.points = o.points;
+    i.x_spacing_mm = o.x_spacing_mm;
+    i.x_start_mm = -0.5 * (o.points - 1) * o.x_spacing_mm;
+    i.z_min_mm = o.z_min_mm;
+    i.z_max_mm = o.z_max_mm;
+    i.z_resolution_mm = o.z_resolution_mm;
+    i.max_rate_hz = o.max_rate_hz;
+    return i;
+  }
+  Status SetExposure(double exposure_us) override {
+    return world_->SetProfilerExposure(exposure_us);
+  }
+
+ protected:
+  Result<RangeProfile> GrabProfile() override {
+    INSITU_ASSIGN_OR_RETURN(sim::SimWorld::ProfileShot shot, world_->GrabProfile());
+    const ProfilerInfo i = info();
+    RangeProfile p;
+    p.x_start_mm = i.x_start_mm;
+    p.x_spacing_mm = i.x_spacing_mm;
+    p.z_mm = std::move(shot.z_mm);
+    p.encoder = shot.encoder;
+    p.sequence = shot.sequence;
+    p.timestamp_s = shot.t_s;
+    return p;
+  }
+
+ private:
+  std::shared_ptr<sim::SimWorld> world_;
+};
+
 }  // namespace
 
 Machine MakeSimMachine(std::shared_ptr<sim::SimWorld> world) {
@@ -214,6 +280,8 @@ Machine MakeSimMachine(std::shared_ptr<sim::SimWorld> world) {
   m.stage = std::make_unique<SimStage>(world);
   m.clock = std::make_unique<SimClock>(world);
   m.person = std::make_unique<SimOperator>(world);
+  if (world->options().gantry.present) m.axis = std::make_unique<SimAxis>(world);
+  if (world->options().profiler.present) m.profiler = std::make_unique<SimProfiler>(world);
   return m;
 }
 
