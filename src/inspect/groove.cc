@@ -3,6 +3,7 @@
 #include <ceres/tiny_solver.h>
 
 #include <Eigen/Core>
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -137,6 +138,37 @@ bool Solve(const std::vector<Point>& p, double alpha, int max_iterations, Eigen:
   return q->allFinite() && (*q)[2] > 0 && (*q)[3] > 0;
 }
 
+// Where the fitted template (levelled) is half its depth below its surface on the side `sign`
+// (-1 left, +1 right) of its centre: bisection, the template falling monotonically from its
+// centre outward.
+double TemplateHalfDepthX(double alpha, const Eigen::Vector4d& q, int sign) {
+  const double target = q[1] - 0.5 * q[2];
+  double in = 0.0, out = q[3] + 10.0 / alpha;  // offsets from the centre
+  for (int it = 0; it < 60; ++it) {
+    const double mid = 0.5 * (in + out);
+    (TemplateValue(alpha, q, q[0] + sign * mid) < target ? in : out) = mid;
+  }
+  return q[0] + sign * 0.5 * (in + out);
+}
+
+// The least-squares parabola z = a + b x + c x^2 through `p` (x taken about x_ref); false with
+// fewer than 3 points or a singular system.
+bool FitParabola(const std::vector<Point>& p, double x_ref, Eigen::Vector3d* abc) {
+  if (p.size() < 3) return false;
+  Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d atz = Eigen::Vector3d::Zero();
+  for (const Point& q : p) {
+    const double u = q.x - x_ref;
+    const Eigen::Vector3d row(1.0, u, u * u);
+    ata += row * row.transpose();
+    atz += row * q.z;
+  }
+  const Eigen::FullPivLU<Eigen::Matrix3d> lu(ata);
+  if (lu.rank() < 3) return false;
+  *abc = lu.solve(atz);
+  return abc->allFinite();
+}
+
 }  // namespace
 
 Status GrooveOptions::Validate() const {
@@ -182,9 +214,11 @@ Groove FitGroove(const Profile& profile, const GrooveOptions& o) {
   const std::vector<double> dev = FromLocalMedian(z, true);
   const double sigma = RobustSigma(dev, o.z_resolution_mm);
   std::vector<Point> kept;
+  std::vector<bool> spike(n);
   kept.reserve(n);
   for (int i = 0; i < n; ++i) {
-    if (std::abs(dev[i]) <= o.outlier_sigmas * sigma) kept.push_back(valid[i]);
+    spike[i] = std::abs(dev[i]) > o.outlier_sigmas * sigma;
+    if (!spike[i]) kept.push_back(valid[i]);
   }
   g.outliers = n - static_cast<int>(kept.size());
 
@@ -266,25 +300,40 @@ Groove FitGroove(const Profile& profile, const GrooveOptions& o) {
   if (!Solve(levelled, o.alpha_per_mm, o.max_iterations, &q, &g.iterations)) {
     return fail("the template's fit did not converge to a groove");
   }
-  // Outliers against the fitted template, over every point of the window (a bottom point the
-  // spike filter took comes back here), then the fit once more on what agrees with it.
+  // A point the spike filter took comes back when it agrees with the fitted template or lies
+  // on the line of the two points beside it on either side (a groove's bottom, where the
+  // median of its neighbours does not follow the profile: a V's tip is on both its flanks'
+  // lines, a spike on neither), and the fit runs once more. Points the filter kept stay:
+  // where the template misses the groove's shape (a laser-cut flank is no tanh), its misfit
+  // is the template's, not the points'.
   {
-    std::vector<Point> all;
-    for (const Point& p : valid) {
-      if (o.window_mm <= 0 || std::abs(p.x - bottom.x) <= o.window_mm) all.push_back(level(p));
+    std::vector<Point> all, agree;
+    std::vector<bool> was_spike;
+    const auto on_a_side = [&](int i) {
+      const double limit = o.outlier_sigmas * sigma;
+      for (int dir : {-1, 1}) {
+        const int a = i + dir, b = i + 2 * dir;
+        if (b < 0 || b >= n || spike[a] || spike[b]) continue;
+        const double t = (valid[i].x - valid[a].x) / (valid[a].x - valid[b].x);
+        if (std::abs(valid[i].z - (valid[a].z + t * (valid[a].z - valid[b].z))) <= limit) {
+          return true;
+        }
+      }
+      return false;
+    };
+    for (int i = 0; i < n; ++i) {
+      if (o.window_mm > 0 && std::abs(valid[i].x - bottom.x) > o.window_mm) continue;
+      all.push_back(level(valid[i]));
+      was_spike.push_back(spike[i] && !on_a_side(i));
     }
-    std::vector<double> r(all.size());
-    for (size_t i = 0; i < all.size(); ++i)
-      r[i] = all[i].z - TemplateValue(o.alpha_per_mm, q, all[i].x);
-    const double sr = RobustSigma(r, o.z_resolution_mm);
-    // Only an isolated point is an outlier: one that also stands out from its neighbours'
-    // residuals. Where the template misses the groove's shape (a V's sharp bottom), the
-    // neighbours miss it alike, and those points stay.
-    const std::vector<double> off_neighbours = FromLocalMedian(r, false);
-    std::vector<Point> agree;
+    std::vector<double> r;
     for (size_t i = 0; i < all.size(); ++i) {
-      const bool isolated = std::abs(off_neighbours[i]) > o.outlier_sigmas * sr;
-      if (std::abs(r[i]) <= o.outlier_sigmas * sr || !isolated) agree.push_back(all[i]);
+      if (!was_spike[i]) r.push_back(all[i].z - TemplateValue(o.alpha_per_mm, q, all[i].x));
+    }
+    const double sr = RobustSigma(r, o.z_resolution_mm);
+    for (size_t i = 0; i < all.size(); ++i) {
+      const double ri = all[i].z - TemplateValue(o.alpha_per_mm, q, all[i].x);
+      if (!was_spike[i] || std::abs(ri) <= o.outlier_sigmas * sr) agree.push_back(all[i]);
     }
     g.outliers = static_cast<int>(all.size() - agree.size());  // within the window
     levelled.swap(agree);
@@ -298,11 +347,107 @@ Groove FitGroove(const Profile& profile, const GrooveOptions& o) {
     const double r = p.z - TemplateValue(o.alpha_per_mm, q, p.x);
     ss += r * r;
   }
+  // The groove measured from its own points, the template placing it (a laser-cut groove is
+  // no tanh step: its flanks follow the beam's profile, and the template's shape would bias
+  // what it reports by its misfit).
+  // - Depth: the deepest point, a parabola through the points in the groove's lowest tenth
+  //   (the bottom of a laser-cut groove is smooth: the beam's profile, or the metal under a
+  //   film cut through; over a wider band a parabola through a flat floor and the start of
+  //   its flanks dips below the floor), below the template's surface; a fifth when the tenth
+  //   holds fewer than three points.
+  // - The half-depth points: on each flank a parabola through the points about where it
+  //   crosses half the depth, and where that parabola does; where the sensor saw no points on
+  //   one side of the crossing, the template's own half-depth point.
+  // - Centre: midway between them. Width: twice their distance along the surface (seed 002's
+  //   w, the opening of a V-groove of that half-depth width; the template's w when its edges
+  //   do not overlap).
+  // The surface: the levelled line through the points beside the groove (the template's z0
+  // leans toward wherever its shape misses the groove's).
+  const double z0 = z_surface;
+  double depth = q[2];
+  {
+    std::vector<Point> low;
+    for (double band : {0.1, 0.2}) {
+      low.clear();
+      for (const Point& p : levelled) {
+        if (z0 - p.z >= (1.0 - band) * q[2]) low.push_back(p);
+      }
+      if (low.size() >= 3) break;
+    }
+    Eigen::Vector3d abc;
+    double lo_x = std::numeric_limits<double>::infinity(), hi_x = -lo_x;
+    for (const Point& p : low) lo_x = std::min(lo_x, p.x), hi_x = std::max(hi_x, p.x);
+    if (FitParabola(low, q[0], &abc) && abc[2] > 0) {
+      const double u = -abc[1] / (2.0 * abc[2]);  // the vertex, when it lies among the points
+      if (q[0] + u >= lo_x && q[0] + u <= hi_x) depth = z0 - (abc[0] + abc[1] * u + abc[2] * u * u);
+    } else if (low.size() >= 3) {
+      // A flat floor (or one the fit cannot bend): the mean of its points.
+      double m = 0;
+      for (const Point& p : low) m += p.z;
+      depth = z0 - m / static_cast<double>(low.size());
+    }
+  }
+  double half_x[2];
+  for (int side = 0; side < 2; ++side) {
+    const int sign = side == 0 ? -1 : 1;
+    // The flank's points from the bottom outward, between a tenth and nine tenths of the depth.
+    std::vector<Point> flank;
+    for (const Point& p : levelled) {
+      const double d = z0 - p.z;
+      if ((p.x - q[0]) * sign > 0 && d >= 0.1 * depth && d <= 0.9 * depth) flank.push_back(p);
+    }
+    std::sort(flank.begin(), flank.end(), [sign](const Point& a, const Point& b) {
+      return (a.x - b.x) * sign < 0;
+    });
+    // Where the flank passes half the depth: a parabola through its points between a quarter
+    // and three quarters of the depth (a gentle flank has many, and they average its noise),
+    // or, where there are fewer than four (a steep flank), through the two on each side of the
+    // crossing; its root between the two that straddle it.
+    size_t cross = 0;
+    while (cross < flank.size() && z0 - flank[cross].z >= 0.5 * depth) ++cross;
+    std::vector<Point> near;
+    for (const Point& p : flank) {
+      const double d = z0 - p.z;
+      if (d >= 0.25 * depth && d <= 0.75 * depth) near.push_back(p);
+    }
+    if (near.size() < 4) {
+      near.clear();
+      for (size_t i = cross >= 2 ? cross - 2 : 0; i < std::min(flank.size(), cross + 2); ++i) {
+        near.push_back(flank[i]);
+      }
+    }
+    double k = 0, b = 0;
+    Eigen::Vector3d abc;
+    const double zh = z0 - 0.5 * depth;
+    if (cross > 0 && cross < flank.size() && near.size() >= 3 &&
+        FitParabola(near, flank[cross].x, &abc)) {
+      // The crossing between the two points that straddle it: a parabola's root there.
+      const double a = abc[2], bb = abc[1], cc = abc[0] - zh;
+      const double lo = std::min(flank[cross - 1].x, flank[cross].x) - flank[cross].x;
+      const double hi = std::max(flank[cross - 1].x, flank[cross].x) - flank[cross].x;
+      double u = std::abs(bb) > 0 ? -cc / bb : 0.0;  // the linear root, refined by Newton
+      for (int it = 0; it < 20 && std::abs(a) > 0; ++it) u -= (cc + bb * u + a * u * u) / (bb + 2 * a * u);
+      if (!(u >= lo - 1e-9 && u <= hi + 1e-9)) u = -cc / bb;
+      half_x[side] = flank[cross].x + u;
+    } else if (cross > 0 && cross < flank.size() && FitLine(near, &k, &b) && k * sign > 0) {
+      half_x[side] = (zh - b) / k;
+    } else {
+      half_x[side] = TemplateHalfDepthX(o.alpha_per_mm, q, sign);
+    }
+  }
+  // The centre in the profile's frame: midway between the two half-depth points there. (A
+  // groove cut square to a tilted surface and one cut vertically into it differ here; the
+  // beam that cut it is vertical to a few degrees, so the midpoint of the two points, not
+  // its foot on the surface along the surface's normal, is where its axis is.)
+  const double zh = z0 - 0.5 * depth;
+  const double centre = 0.5 * (c * (half_x[0] + half_x[1]) - 2.0 * s * zh) ;
   g.ok = true;
-  g.x_mm = c * q[0] - s * q[1];
-  g.z_mm = s * q[0] + c * q[1];
-  g.depth_mm = q[2];
-  g.width_mm = q[3];
+  g.x_mm = centre;
+  g.z_mm = (s * centre + z0) / c;  // the surface line above it
+  g.depth_mm = depth;
+  g.width_mm = 2.0 * (half_x[1] - half_x[0]);
+  g.template_width_mm = q[3];
+  g.template_depth_mm = q[2];
   g.tilt_rad = theta;
   g.points = static_cast<int>(levelled.size());
   g.rms_mm = std::sqrt(ss / static_cast<double>(levelled.size()));

@@ -60,8 +60,13 @@ struct Groove {
   std::string why;        // when not ok: what was wrong with the profile
   double x_mm = 0.0;      // centre, profile frame
   double z_mm = 0.0;      // surface height at the centre, profile frame
-  double depth_mm = 0.0;  // deepest point of the fitted template below its surface
-  double width_mm = 0.0;  // at the surface (the template's w)
+  // Measured from the groove's points, placed by the template: its deepest point below the
+  // surface, and twice the distance between its half-depth points (seed 002's w: the opening
+  // of a V-groove of that half-depth width). The centre is midway between those points.
+  double depth_mm = 0.0;
+  double width_mm = 0.0;
+  double template_depth_mm = 0.0;  // the fitted template's own (eq. 11)
+  double template_width_mm = 0.0;
   double tilt_rad = 0.0;  // the surface's slope in the profile (levelling)
   double rms_mm = 0.0;    // fit residual, rms over the points used
   int points = 0;         // used in the fit
