@@ -47,7 +47,7 @@ std::vector<int> Nearest(const Points2& query, const Points2& to) {
 // resampled every `step` mm, so that it is as dense as the measured points: eq. 22's rule
 // takes, of the measured points claiming a design point, the farthest, which is a correction
 // at a corner only when both sets are equally dense.
-Points2 Resample(const Points2& polyline, double step) {
+Points2 Resample(const Points2& polyline, double step, bool* is_closed) {
   if (polyline.size() < 2 || !(step > 0)) return polyline;
   std::vector<double> seg;
   for (size_t i = 0; i + 1 < polyline.size(); ++i) {
@@ -57,20 +57,31 @@ Points2 Resample(const Points2& polyline, double step) {
   std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2),
                    sorted.end());
   Points2 chain = polyline;
-  if ((polyline.back() - polyline.front()).norm() <= 1.5 * sorted[sorted.size() / 2]) {
-    chain.push_back(polyline.front());
-  }
+  const bool closed =
+      *is_closed || (polyline.back() - polyline.front()).norm() <= 1.5 * sorted[sorted.size() / 2];
+  if (closed && (polyline.back() - polyline.front()).norm() > 0) chain.push_back(polyline.front());
+  *is_closed = closed;
+  double total = 0.0;
+  for (size_t i = 0; i + 1 < chain.size(); ++i) total += (chain[i + 1] - chain[i]).norm();
+  // Evenly along the chain at the step nearest `step` that divides it: a closed chain's last
+  // sample one step short of its first (a sample left over at the seam would weigh the centroid
+  // toward the start), an open one's at its end.
+  const long n = std::max<long>(1, std::lround(total / step));
+  const double even = total / static_cast<double>(n);
+  const long count = closed ? n : n + 1;
   Points2 out;
-  double carry = 0.0;  // distance along the chain to the next sample
-  for (size_t i = 0; i + 1 < chain.size(); ++i) {
+  size_t i = 0;
+  double start = 0.0;  // distance along the chain at chain[i]
+  for (long k = 0; k < count; ++k) {
+    const double s = std::min(k * even, total);
+    while (i + 2 < chain.size() && start + (chain[i + 1] - chain[i]).norm() < s) {
+      start += (chain[i + 1] - chain[i]).norm();
+      ++i;
+    }
     const Eigen::Vector2d a = chain[i], b = chain[i + 1];
     const double len = (b - a).norm();
-    double t = carry;
-    while (t < len) {
-      out.push_back(a + (b - a) * (t / len));
-      t += step;
-    }
-    carry = t - len;
+    out.push_back(len > 0 ? Eigen::Vector2d(a + (b - a) * std::clamp((s - start) / len, 0.0, 1.0))
+                          : a);
   }
   if (out.empty()) out.push_back(polyline.front());
   return out;
@@ -144,7 +155,9 @@ std::vector<ContourMatch> MatchContours(const std::vector<Points2>& design,
   return out;
 }
 
-static Result<ContourError> CompareResampled(const Points2& design, const Points2& measured) {
+// `closed`: the design's last point joins its first.
+static Result<ContourError> CompareResampled(const Points2& design, const Points2& measured,
+                                             bool closed) {
   ContourError e;
   const Eigen::Vector2d c = Centroid(design);
   e.offset_mm = c - Centroid(measured);  // eq. 21
@@ -177,19 +190,42 @@ static Result<ContourError> CompareResampled(const Points2& design, const Points
   const size_t n_design = design.size();
   std::vector<Eigen::Vector2d> normal(n_design, Eigen::Vector2d::Zero());
   for (size_t i = 0; i < n_design; ++i) {
-    const Eigen::Vector2d t = design[std::min(i + 1, n_design - 1)] - design[i > 0 ? i - 1 : 0];
+    const size_t next = i + 1 < n_design ? i + 1 : (closed ? 0 : n_design - 1);
+    const size_t prev = i > 0 ? i - 1 : (closed ? n_design - 1 : 0);
+    const Eigen::Vector2d t = design[next] - design[prev];
     if (t.norm() > 0) normal[i] = Eigen::Vector2d(-t.y(), t.x()) / t.norm();
   }
   // Fitted over the measured points, each against the design point nearest it: the design is a
   // clean, dense line, so that is the foot of the perpendicular and the distance across the line
   // is unbiased. (From the design side, the nearest of wandering centres is biased towards the
   // line, by a few percent of the scale once the wander reaches the centres' spacing.)
+  // The foot is taken on the design's segments either side of the nearest design point (on a
+  // curve, the nearest point's own normal would see a point half a spacing along as inside
+  // the curve by the sagitta, and the scale would shrink with it).
   double num = 0, den = 0;
   for (size_t k = 0; k < moved.size(); ++k) {
     const int l = from_measured[k];
     if (l < 0) continue;
-    const double pn = (design[l] - c).dot(normal[l]);
-    num += pn * (moved[k] - design[l]).dot(normal[l]);
+    Eigen::Vector2d foot = design[l], n = normal[l];
+    double best = (moved[k] - design[l]).squaredNorm();
+    for (int side : {-1, 1}) {
+      const long m = static_cast<long>(l) + side;
+      if (!closed && (m < 0 || m >= static_cast<long>(n_design))) continue;
+      const Eigen::Vector2d other = design[(m + n_design) % n_design];
+      const Eigen::Vector2d ab = other - design[l];
+      const double len2 = ab.squaredNorm();
+      if (!(len2 > 0)) continue;
+      const double t = std::clamp((moved[k] - design[l]).dot(ab) / len2, 0.0, 1.0);
+      const Eigen::Vector2d f = design[l] + t * ab;
+      if ((moved[k] - f).squaredNorm() < best) {
+        best = (moved[k] - f).squaredNorm();
+        foot = f;
+        const Eigen::Vector2d nn(-ab.y() * side, ab.x() * side);  // same sense as normal[l]
+        n = nn.dot(normal[l]) >= 0 ? Eigen::Vector2d(nn.normalized()) : Eigen::Vector2d(-nn.normalized());
+      }
+    }
+    const double pn = (foot - c).dot(n);
+    num += pn * (moved[k] - foot).dot(n);
     den += pn * pn;
   }
   const double s = den > 0 ? num / den : 0.0;
@@ -217,8 +253,13 @@ static Result<ContourError> CompareResampled(const Points2& design, const Points
     const double local = (q - design[i]).norm();
     const size_t k = static_cast<size_t>(std::max(0, on_scaled[i]));
     double after = (q - scaled[k]).norm();
-    if (k > 0) after = std::min(after, to_segment(q, scaled[k - 1], scaled[k]));
-    if (k + 1 < n_design) after = std::min(after, to_segment(q, scaled[k], scaled[k + 1]));
+    // Either side of it, across the seam of a closed contour.
+    if (k > 0 || closed) {
+      after = std::min(after, to_segment(q, scaled[k > 0 ? k - 1 : n_design - 1], scaled[k]));
+    }
+    if (k + 1 < n_design || closed) {
+      after = std::min(after, to_segment(q, scaled[k], scaled[k + 1 < n_design ? k + 1 : 0]));
+    }
     e.local_mm.push_back(local);
     e.local_after_scale_mm.push_back(after);
     e.error_mm.push_back(e.offset_mm.norm() + local);  // eq. 23
@@ -230,7 +271,8 @@ static Result<ContourError> CompareResampled(const Points2& design, const Points
   return e;
 }
 
-Result<ContourError> CompareContour(const Points2& design, const Points2& measured) {
+Result<ContourError> CompareContour(const Points2& design, const Points2& measured,
+                                    bool closed) {
   if (design.empty() || measured.empty()) {
     return InvalidArgument(std::string("an empty ") + (design.empty() ? "design" : "measured") +
                            " contour");
@@ -247,8 +289,10 @@ Result<ContourError> CompareContour(const Points2& design, const Points2& measur
   // nearest-neighbour distance would shrink with their wander across the line).
   double length = 0;
   for (size_t i = 0; i + 1 < design.size(); ++i) length += (design[i + 1] - design[i]).norm();
+  if (closed) length += (design.back() - design.front()).norm();
   const double spacing = length / static_cast<double>(measured.size());
-  return CompareResampled(spacing > 0 ? Resample(design, spacing) : design, measured);
+  const Points2 resampled = spacing > 0 ? Resample(design, spacing, &closed) : design;
+  return CompareResampled(resampled, measured, closed);
 }
 
 }  // namespace insitu::inspect

@@ -266,6 +266,21 @@ void ReadWorld(ConfigReader& r, sim::WorldOptions* w) {
   p.Read("panel_thickness_mm", &po.panel_thickness_mm);
   p.Read("maskant_thickness_mm", &po.maskant_thickness_mm);
   p.Read("panel_bow_mm", &po.panel_bow_mm);
+  if (p.Has("panel_holes_mm")) {
+    p.Skip("panel_holes_mm");
+    const ConfigNode holes = p.node().Child("panel_holes_mm");
+    po.panel_holes_mm.clear();
+    for (size_t i = 0; holes.IsSequence() && i < holes.size(); ++i) {
+      auto h = holes.At(i).AsDoubleList();
+      if (!h.ok() || h->size() != 2) {
+        p.Fail("panel_holes_mm", "entry " + std::to_string(i) + " must be [x, y]");
+        break;
+      }
+      po.panel_holes_mm.push_back({(*h)[0], (*h)[1]});
+    }
+    if (!holes.IsSequence()) p.Fail("panel_holes_mm", "must be a list of [x, y]");
+  }
+  p.Read("panel_hole_diameter_mm", &po.panel_hole_diameter_mm);
   p.Read("maskant_ablation_threshold_j_per_cm2", &po.maskant_ablation_threshold_j_per_cm2);
   p.Read("maskant_ablation_depth_um", &po.maskant_ablation_depth_um);
   if (p.ok()) p.FailFromValidate(po.Validate());
@@ -317,6 +332,18 @@ void ReadWorld(ConfigReader& r, sim::WorldOptions* w) {
   pr.Read("max_rate_hz", &pf.max_rate_hz);
   pr.ReadArray("mount", pf.mount.data(), 6);
   if (pr.ok()) pr.FailFromValidate(pf.Validate());
+
+  ConfigReader& bl = r.Section("block");
+  sim::CalibrationBlockOptions& bk = w->block;
+  bl.Read("present", &bk.present);
+  bl.ReadArray("position_mm", bk.position_mm.data(), 2);
+  bl.Read("rotation_deg", &bk.rotation_deg);
+  bl.Read("plate_thickness_mm", &bk.plate_thickness_mm);
+  bl.Read("plate_mm", &bk.plate_mm);
+  bl.Read("base_mm", &bk.base_mm);
+  bl.Read("top_mm", &bk.top_mm);
+  bl.Read("height_mm", &bk.height_mm);
+  if (bl.ok()) bl.FailFromValidate(bk.Validate());
 
   ConfigReader& fa = r.Section("faults");
   fa.Read("camera_timeout_at_frame", &w->faults.camera_timeout_at_frame);

@@ -17,6 +17,7 @@
 #include "insitu/pattern/path_opt.h"
 #include "insitu/pattern/raster.h"
 #include "insitu/pattern/vector.h"
+#include "job/head_list.h"
 #include "job/mark_verify.h"
 #include "job/progress.h"
 #include "job/scan_job.h"
@@ -274,53 +275,6 @@ Result<std::vector<pattern::Segment2>> PatternSegments(const ItemSpec& s, PathSt
   return out;
 }
 
-// The list's moves (field-corrected, as Emit sends them) and settings for the
-// scan head.
-hw::GalvoList ToHeadList(const std::vector<pattern::ListCommand>& list,
-                         const pattern::FieldCorrection& correction) {
-  hw::GalvoList out;
-  const auto corrected = [&](const Eigen::Vector3d& p) { return correction ? correction(p) : p; };
-  for (const pattern::ListCommand& c : list) {
-    switch (c.op) {
-      case pattern::ListOp::kJumpAbs:
-        out.entries.push_back({hw::GalvoListEntry::Kind::kJump, corrected(c.p)});
-        break;
-      case pattern::ListOp::kMarkAbs:
-        out.entries.push_back({hw::GalvoListEntry::Kind::kMark, corrected(c.p)});
-        break;
-      case pattern::ListOp::kSetJumpSpeed:
-        out.jump_speed_mm_per_s = c.a;
-        break;
-      case pattern::ListOp::kSetMarkSpeed:
-        out.mark_speed_mm_per_s = c.a;
-        break;
-      case pattern::ListOp::kSetLaserDelays:
-        out.laser_on_delay_us = std::max(0.0, c.a);
-        out.laser_off_delay_us = c.b;
-        break;
-      case pattern::ListOp::kSetScannerDelays:
-        out.jump_delay_us = c.a;
-        out.mark_delay_us = c.b;
-        break;
-      case pattern::ListOp::kSetLaserPower:
-        out.laser_power = c.a;
-        break;
-      case pattern::ListOp::kSetLaserFrequency:
-        out.laser_frequency_khz = c.a;
-        break;
-      case pattern::ListOp::kEndOfList:
-        break;
-    }
-  }
-  return out;
-}
-
-// Disarms on every way out of the marking step.
-struct ArmGuard {
-  hw::Scanner* scanner;
-  ~ArmGuard() { (void)scanner->Disarm(); }
-};
-
 }  // namespace
 
 Status CheckMarkJob(const LoadedJob& job) {
@@ -386,14 +340,13 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
     };
   }
   INSITU_ASSIGN_OR_RETURN(ScanMachine up, BringUp(job, spec, machine_config));
+  // A focus offset is taken along the marking beam (pattern::MarkSettings::beam_up).
+  mark.laser.beam_up = [head = up.calibration.head.model](const Eigen::Vector3d& cmd) {
+    optics::ChiefRay ray;
+    return head.Land(cmd, {}, &ray) ? ray.up : Eigen::Vector3d(Eigen::Vector3d::UnitZ());
+  };
   if (!correction && up.calibration.head.measured) {
-    // The head the field calibration measured: every point is sent as the command that puts
-    // the marking beam on it. Where no command does (the inverse does not converge), Emit
-    // refuses the point by name: it is never marked uncorrected.
-    correction = [head = up.calibration.head](const Eigen::Vector3d& p) {
-      Eigen::Vector3d c;
-      return head.MarkCommandFor(p, &c) ? c : Eigen::Vector3d::Constant(NAN);
-    };
+    correction = MeasuredHeadCorrection(up.calibration);
   } else if (correction && up.calibration.head.measured) {
     bypassed_measured_head = true;
   }

@@ -16,6 +16,7 @@
 #include "job/calibrate.h"
 #include "job/field_calibration.h"
 #include "job/machine_diagnosis.h"
+#include "job/inspect_grooves.h"
 #include "job/mark.h"
 #include "job/progress.h"
 #include "job/scan_job.h"
@@ -224,7 +225,8 @@ Result<Report> RunScanJob(const LoadedJob& job, const RunOptions& options) {
 }  // namespace
 
 std::vector<std::string> JobKinds() {
-  return {"scan", "accuracy", "calibrate", "field_calibration", "mark", "diagnose_machine"};
+  return {"scan", "accuracy", "calibrate", "field_calibration", "mark", "diagnose_machine",
+          "calibrate_profiler", "inspect_grooves"};
 }
 
 namespace {
@@ -247,6 +249,8 @@ Status CheckJob(const LoadedJob& job) {
   if (job.kind == "field_calibration") return CheckFieldCalibrationJob(job);
   if (job.kind == "diagnose_machine") return CheckDiagnoseMachineJob(job);
   if (job.kind == "mark") return CheckMarkJob(job);
+  if (job.kind == "calibrate_profiler") return CheckCalibrateProfilerJob(job);
+  if (job.kind == "inspect_grooves") return CheckInspectGroovesJob(job);
   return UnknownKind(job);
 }
 
@@ -256,6 +260,8 @@ Result<Report> RunJob(const LoadedJob& job, const RunOptions& options) {
   if (job.kind == "field_calibration") return RunFieldCalibrationJob(job, options);
   if (job.kind == "diagnose_machine") return RunDiagnoseMachineJob(job, options);
   if (job.kind == "mark") return RunMarkJob(job, options);
+  if (job.kind == "calibrate_profiler") return RunCalibrateProfilerJob(job, options);
+  if (job.kind == "inspect_grooves") return RunInspectGroovesJob(job, options);
   return UnknownKind(job);
 }
 

@@ -58,7 +58,17 @@ Result<std::vector<ListCommand>> PlanMarking(const std::vector<Segment2>& segmen
         in_mark = false;
         continue;
       }
-      const Eigen::Vector3d q(p.x(), p.y(), at->z_mm + s.focus_offset_mm);
+      Eigen::Vector3d q(p.x(), p.y(), at->z_mm + s.focus_offset_mm);
+      if (s.focus_offset_mm != 0.0 && s.beam_up) {
+        // The focus on the beam through the surface point (the beam's slant varies slowly over
+        // the field: three rounds settle it to well under a micrometre).
+        const Eigen::Vector3d surface_point(p.x(), p.y(), at->z_mm);
+        for (int it = 0; it < 3; ++it) {
+          const Eigen::Vector3d up = s.beam_up(q);
+          if (!(up.allFinite() && up.z() > 0.1)) break;
+          q = surface_point + up * (s.focus_offset_mm / up.z());
+        }
+      }
       r.z_min_mm = std::min(r.z_min_mm, at->z_mm);
       r.z_max_mm = std::max(r.z_max_mm, at->z_mm);
       if (in_mark) {

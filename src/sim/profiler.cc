@@ -86,7 +86,19 @@ double SimWorld::AblatedDepthMm(double x_mm, double y_mm) const {
 }
 
 double SimWorld::TrueSurfaceZ(double x_mm, double y_mm) const {
-  return scene_->stage_z() + scene_->TrueHeightAt(x_mm, y_mm) - AblatedDepthMm(x_mm, y_mm);
+  const double part =
+      scene_->stage_z() + scene_->TrueHeightAt(x_mm, y_mm) - AblatedDepthMm(x_mm, y_mm);
+  const CalibrationBlockOptions& b = options_.block;
+  if (!b.present) return part;
+  // The block in its own frame: u, v from its axis.
+  const double c = block_cos_, s = block_sin_;
+  const double dx = x_mm - b.position_mm[0], dy = y_mm - b.position_mm[1];
+  const double u = c * dx + s * dy, v = -s * dx + c * dy;
+  const double m = std::max(std::abs(u), std::abs(v));
+  if (m > 0.5 * b.plate_mm) return part;
+  const double ramp = (0.5 * b.base_mm - m) / (0.5 * (b.base_mm - b.top_mm));
+  const double top = b.plate_thickness_mm + b.height_mm * std::clamp(ramp, 0.0, 1.0);
+  return std::max(part, scene_->stage_z() + top);
 }
 
 bool SimWorld::SurfaceBlocks(const Eigen::Vector3d& from, const Eigen::Vector3d& to) const {
@@ -95,13 +107,17 @@ bool SimWorld::SurfaceBlocks(const Eigen::Vector3d& from, const Eigen::Vector3d&
   if (!(d.z() > 0)) return true;  // a light or a camera below the surface
   // Where the segment is clear for good: above the part's top near a wall, else a little
   // above the deepest groove around.
-  const bool near_edge =
-      scene_->DistanceToPartEdge(from.x(), from.y()) <
-      (scene_->part_max_height() + 1.0) * horizontal / d.z() + 1.0;
+  const CalibrationBlockOptions& b = options_.block;
+  const double block_top = b.present ? b.plate_thickness_mm + b.height_mm : 0.0;
+  const double tallest = std::max(scene_->part_max_height(), block_top);
+  const double reach = (tallest + 1.0) * horizontal / d.z() + 1.0;
+  const bool near_block =
+      b.present && std::hypot(from.x() - b.position_mm[0], from.y() - b.position_mm[1]) <
+                       0.75 * b.plate_mm + reach;
+  const bool near_edge = near_block || scene_->DistanceToPartEdge(from.x(), from.y()) < reach;
   const bool near_marks = marks_->MarkedNear(from.x(), from.y(), 1.0);
   if (!near_edge && !near_marks) return false;  // a smooth, gently curved top hides nothing
-  const double clear_z = near_edge ? scene_->stage_z() + scene_->part_max_height() + 0.01
-                                   : from.z() + 1.0;
+  const double clear_z = near_edge ? scene_->stage_z() + tallest + 0.01 : from.z() + 1.0;
   // 5 um steps along the horizontal: under the grooves' and the cells' scale.
   const double step = horizontal > 0 ? std::min(1.0, 0.005 / horizontal) : 1.0;
   for (double s = step; s <= 1.0; s += step) {

@@ -56,6 +56,8 @@ SimWorld::SimWorld(const WorldOptions& options)
   head_rng_.seed(options.seed * 0x9E3779B97F4A7C15ull + 0x5EEDull);
   profiler_rng_.seed(options.seed * 0xD1B54A32D192ED03ull + 0x9A0Full);
   profiler_exposure_us_ = options.profiler.exposure_us;
+  block_cos_ = std::cos(options.block.rotation_deg * M_PI / 180.0);
+  block_sin_ = std::sin(options.block.rotation_deg * M_PI / 180.0);
 }
 
 std::unique_ptr<MarkMap> SimWorld::NewMarkMap() const {

@@ -178,6 +178,14 @@ Status PartOptions::Validate() const {
   if (!(std::abs(panel_bow_mm) < 0.05 * panel_size_mm[0])) {
     return InvalidValue("panel_bow_mm", "within 5 % of the panel's x size", panel_bow_mm);
   }
+  if (!(panel_hole_diameter_mm > 0 && panel_hole_diameter_mm < 100))
+    return InvalidValue("panel_hole_diameter_mm", "in (0, 100)", panel_hole_diameter_mm);
+  for (const auto& h : panel_holes_mm) {
+    if (!(std::abs(h[0]) + 0.5 * panel_hole_diameter_mm < 0.5 * panel_size_mm[0] &&
+          std::abs(h[1]) + 0.5 * panel_hole_diameter_mm < 0.5 * panel_size_mm[1])) {
+      return InvalidValue("panel_holes_mm", "holes inside the panel", h[0]);
+    }
+  }
   if (!IsPositiveFinite(maskant_ablation_threshold_j_per_cm2)) {
     return InvalidValue("maskant_ablation_threshold_j_per_cm2", "> 0",
                         maskant_ablation_threshold_j_per_cm2);
@@ -207,6 +215,19 @@ Status GantryOptions::Validate() const {
     return InvalidValue("repeatability_um", "in [0, 1000)", repeatability_um);
   if (!(encoder_counts_per_mm >= 1 && encoder_counts_per_mm <= 1e6))
     return InvalidValue("encoder_counts_per_mm", "in [1, 1e6]", encoder_counts_per_mm);
+  return Status::Ok();
+}
+
+Status CalibrationBlockOptions::Validate() const {
+  if (!(std::isfinite(position_mm[0]) && std::isfinite(position_mm[1])))
+    return InvalidValue("position_mm", "finite", position_mm[0]);
+  if (!std::isfinite(rotation_deg)) return InvalidValue("rotation_deg", "finite", rotation_deg);
+  if (!IsPositiveFinite(plate_thickness_mm))
+    return InvalidValue("plate_thickness_mm", "> 0", plate_thickness_mm);
+  if (!(top_mm > 0 && base_mm > top_mm && plate_mm > base_mm && plate_mm < 1000)) {
+    return InvalidValue("base_mm", "between top_mm (> 0) and plate_mm (< 1000)", base_mm);
+  }
+  if (!IsPositiveFinite(height_mm)) return InvalidValue("height_mm", "> 0", height_mm);
   return Status::Ok();
 }
 
@@ -292,6 +313,7 @@ Status WorldOptions::Validate() const {
   INSITU_RETURN_IF_ERROR(faults.Validate().Prefixed("faults"));
   INSITU_RETURN_IF_ERROR(gantry.Validate().Prefixed("gantry"));
   INSITU_RETURN_IF_ERROR(profiler.Validate().Prefixed("profiler"));
+  INSITU_RETURN_IF_ERROR(block.Validate().Prefixed("block"));
   if (profiler.present && !gantry.present) {
     return InvalidArgument("profiler: present needs a gantry to carry it (gantry.present)");
   }

@@ -150,3 +150,51 @@ TEST(Contours, AnEngravedContourSplitsIntoOffsetScaleAndLocalError) {
 
 }  // namespace
 }  // namespace insitu::inspect
+
+namespace insitu::inspect {
+namespace {
+
+// A closed design as CAD gives it (a rounded rectangle's vertices, the straight sides two
+// points each, the corners many; its first point not repeated at the end) against centres
+// measured exactly on it, half a spacing along from the design's own samples: no offset, no
+// scale, and no local error but the resampled design's 0.2 mm chords cutting the corners'
+// flattened arcs (a vertex every 1.4 deg: 0.1 mm x 0.012 = 1.2 um; the chords' 1.3 um sagitta
+// on a 4 mm radius). The seam between the last and first points counts like any other
+// stretch of the contour.
+TEST(Contours, AClosedDesignComparesCleanAcrossItsSeam) {
+  Points2 design;
+  const double r = 4.0;
+  const Vector2d corner[4] = {{41.0, 31.0}, {14.0, 31.0}, {14.0, 14.0}, {41.0, 14.0}};
+  for (int k = 0; k < 4; ++k) {
+    for (int i = 0; i <= 64; ++i) {
+      const double t = (k + i / 64.0) * M_PI / 2;
+      design.push_back(corner[k] + r * Vector2d(std::cos(t), std::sin(t)));
+    }
+  }
+  // The measured centres: every 0.2 mm along the closed outline, from 0.1 mm past its start.
+  Points2 chain = design;
+  chain.push_back(design.front());
+  double length = 0;
+  for (size_t i = 1; i < chain.size(); ++i) length += (chain[i] - chain[i - 1]).norm();
+  const int n = static_cast<int>(std::round(length / 0.2));
+  Points2 measured;
+  size_t seg = 1;
+  double start = 0;
+  for (int k = 0; k < n; ++k) {
+    const double s = (k + 0.5) * length / n;
+    while (start + (chain[seg] - chain[seg - 1]).norm() < s) start += (chain[seg] - chain[seg - 1]).norm(), ++seg;
+    const Vector2d d = chain[seg] - chain[seg - 1];
+    measured.push_back(chain[seg - 1] + d * ((s - start) / d.norm()));
+  }
+  auto e = CompareContour(design, measured, /*closed=*/true);
+  ASSERT_TRUE(e.ok()) << e.status().ToString();
+  EXPECT_LT(e->offset_mm.norm(), 1e-6);
+  // The resampled design's chords lie inside the corners' arcs by up to 2.5 um, over a sixth of
+  // the outline: seen as a scale, ~2e-5 (0.3 um over a 15 mm half size).
+  EXPECT_LT(std::abs(e->scale_pct), 5e-3);
+  EXPECT_LT(e->local_max_mm, 0.003);  // 1.2 + 1.3 um
+  EXPECT_EQ(e->design.size(), measured.size());
+}
+
+}  // namespace
+}  // namespace insitu::inspect

@@ -56,6 +56,9 @@ struct ContourError {
   double local_rms_mm = 0.0, local_max_mm = 0.0;  // after offset and scale
 };
 // Errors: invalid_argument for an empty contour or a point that is not a number.
-Result<ContourError> CompareContour(const Points2& design, const Points2& measured);
+// `closed`: the design's last point joins its first (a CAD contour's closed flag). Without it,
+// a design whose ends are as close as its points are is taken as closed.
+Result<ContourError> CompareContour(const Points2& design, const Points2& measured,
+                                    bool closed = false);
 
 }  // namespace insitu::inspect

@@ -6,6 +6,7 @@
 // with a jump. Nothing is marked at an invented height.
 #pragma once
 
+#include <functional>
 #include <vector>
 
 #include <Eigen/Core>
@@ -26,6 +27,12 @@ struct MarkSettings {
   double jump_delay_us = 100.0, mark_delay_us = 50.0, polygon_delay_us = 20.0;
   double max_step_mm = 0.2;             // so z follows the surface between points
   double focus_offset_mm = 0.0;         // focus this far above (+) the surface
+  // The marking beam's direction (unit, toward the head) for a command at a point: with a
+  // focus offset, the focus is put on the beam through the surface point, this far along it,
+  // so the beam still meets the surface where the pattern is (off the field's centre the beam
+  // comes in slanted: 10 mm of defocus 30 mm off axis would move the mark ~1 mm). Empty:
+  // straight up.
+  std::function<Eigen::Vector3d(const Eigen::Vector3d&)> beam_up;
 
   Status Validate() const;
 };

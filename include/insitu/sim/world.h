@@ -251,6 +251,7 @@ class SimWorld {
   std::array<double, 4> gantry_command_{0.0, 0.0, 0.0, 0.0};
   std::array<double, 4> gantry_true_{0.0, 0.0, 0.0, 0.0};
   double profiler_exposure_us_ = 0.0;
+  double block_cos_ = 1.0, block_sin_ = 0.0;  // the calibration block's rotation
   uint64_t profile_counter_ = 0;
   std::mt19937_64 profiler_rng_;
   // Whether the segment from `from` (on the surface) to `to` passes under the surface.

@@ -190,6 +190,10 @@ struct PartOptions {
   double panel_thickness_mm = 2.0;       // the aluminium skin
   double maskant_thickness_mm = 0.31;    // the film (seed 002: grooves 0.3124 +- 0.0148 deep)
   double panel_bow_mm = 0.0;             // clamping bend, + up
+  // Tooling holes through the skin (the datums a chemical-milling template is pinned to and the
+  // inspection locates the part by), centres relative to the panel's centre in its own frame.
+  std::vector<std::array<double, 2>> panel_holes_mm{{-50.0, -40.0}, {50.0, -40.0}};
+  double panel_hole_diameter_mm = 6.0;
   // Maskant at 1064 nm, ns pulses: an elastomer film (neoprene or styrene-butadiene) loaded with
   // pigment, far below metals' thresholds.
   double maskant_ablation_threshold_j_per_cm2 = 0.15;
@@ -294,6 +298,23 @@ struct ProfilerOptions {
   Status Validate() const;
 };
 
+// The profiler's calibration block (seed 002 eq. 9-10): a truncated square pyramid on a
+// square plate, fixed to the stage beside the part where the gantry reaches it and the galvo
+// does not (the profiler alone sees it). Its faces are what a CMM report gives the mounting
+// calibration.
+struct CalibrationBlockOptions {
+  bool present = false;
+  std::array<double, 2> position_mm{150.0, 0.0};  // the pyramid's axis on the stage, world xy
+  double rotation_deg = 0.0;                      // about z
+  double plate_thickness_mm = 10.0;               // the plate's top above the stage plate
+  double plate_mm = 80.0;                         // the plate's side
+  double base_mm = 60.0;                          // the pyramid's base side
+  double top_mm = 30.0;                           // its top's side
+  double height_mm = 15.0;                        // above the plate
+
+  Status Validate() const;
+};
+
 // Device faults the simulated machine injects (for the daemon's fault handling): each fires
 // once its count is reached; -1 never. Counted per machine (per job).
 struct FaultOptions {
@@ -317,6 +338,7 @@ struct WorldOptions {
   FaultOptions faults;
   GantryOptions gantry;
   ProfilerOptions profiler;
+  CalibrationBlockOptions block;
   uint64_t seed = 1;
   // Virtual seconds per wall-clock second: 0 runs as fast as the computer can (tests, CI);
   // 1 runs the devices in real time, as a daemon driving a real cell would see them.
