@@ -1,5 +1,6 @@
 #include "insitu/inspect/contours.h"
 
+#include <Eigen/LU>
 #include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
@@ -155,12 +156,84 @@ std::vector<ContourMatch> MatchContours(const std::vector<Points2>& design,
   return out;
 }
 
-// `closed`: the design's last point joins its first.
-static Result<ContourError> CompareResampled(const Points2& design, const Points2& measured,
-                                             bool closed) {
+// The foot of the perpendicular from q on a polyline (its nearest point, over every segment;
+// `closed` adds the one from the last point to the first) and the polyline's unit normal there
+// (left of its direction).
+struct Foot {
+  Eigen::Vector2d point = Eigen::Vector2d::Zero(), normal = Eigen::Vector2d::Zero();
+  double distance = std::numeric_limits<double>::infinity();
+  double along = 0.0;  // arc length of the foot from the polyline's first point
+};
+Foot FootOn(const Eigen::Vector2d& q, const Points2& line, bool closed) {
+  Foot best;
+  const size_t n = line.size();
+  const size_t segments = closed ? n : n - 1;
+  double start = 0.0;
+  for (size_t i = 0; i < segments && n >= 2; ++i) {
+    const Eigen::Vector2d a = line[i], b = line[(i + 1) % n], ab = b - a;
+    const double len2 = ab.squaredNorm();
+    if (!(len2 > 0)) continue;
+    const double t = std::clamp((q - a).dot(ab) / len2, 0.0, 1.0);
+    const Eigen::Vector2d f = a + t * ab;
+    const double d = (q - f).norm();
+    if (d < best.distance) {
+      best.distance = d;
+      best.point = f;
+      best.normal = Eigen::Vector2d(-ab.y(), ab.x()) / std::sqrt(len2);
+      best.along = start + t * std::sqrt(len2);
+    }
+    start += std::sqrt(len2);
+  }
+  return best;
+}
+
+// The contour's displacement d and scale about the design's centroid c, fitted to what the
+// measured points show: their displacements across the design line,
+//   (q - P) . n = d . n + s (P - c) . n,
+// P the foot of the perpendicular from q on the design and n its normal there. A line profiler
+// sees a groove only across it: a contour displaced along one of its sides keeps its centres at
+// the stations there, so the points' own mean would see only a share of the displacement (the
+// share of the contour running across it). Refitted from the feet of the points moved back by
+// d, until d settles.
+struct Fit {
+  Eigen::Vector2d d = Eigen::Vector2d::Zero();
+  double s = 0.0;
+};
+Fit FitAcross(const Points2& measured, const Points2& line, bool closed,
+              const Eigen::Vector2d& c) {
+  Fit fit;
+  for (int round = 0; round < 5; ++round) {
+    Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+    for (const Eigen::Vector2d& q : measured) {
+      const Foot f = FootOn(q - fit.d, line, closed);
+      if (!std::isfinite(f.distance)) continue;
+      const Eigen::Vector3d row(f.normal.x(), f.normal.y(), (f.point - c).dot(f.normal));
+      ata += row * row.transpose();
+      atb += row * (q - f.point).dot(f.normal);
+    }
+    const Eigen::FullPivLU<Eigen::Matrix3d> lu(ata);
+    if (lu.rank() < 3) break;  // a straight design: no scale and one offset component free
+    const Eigen::Vector3d x = lu.solve(atb);
+    const bool settled = (x.head<2>() - fit.d).norm() < 1e-7;
+    fit.d = x.head<2>();
+    fit.s = x(2);
+    if (settled) break;
+  }
+  return fit;
+}
+
+// `design`: the design resampled as densely as the measured points (eq. 21-22); `line`: the
+// design as given (its own vertices, dense along curves), for distances across it. `closed`:
+// the design's last point joins its first.
+static Result<ContourError> CompareResampled(const Points2& design, const Points2& line,
+                                             const Points2& measured, bool closed) {
   ContourError e;
-  const Eigen::Vector2d c = Centroid(design);
-  e.offset_mm = c - Centroid(measured);  // eq. 21
+  const Eigen::Vector2d c = Centroid(design);  // evenly resampled: the curve's centroid
+  // Eq. 21: E = design centroid - measured centroid, the measured contour's centroid being the
+  // design's moved by the displacement fitted across the line (FitAcross).
+  const Fit fit = FitAcross(measured, line, closed, c);
+  e.offset_mm = -fit.d;
   Points2 moved(measured);
   for (Eigen::Vector2d& q : moved) q += e.offset_mm;
 
@@ -184,85 +257,25 @@ static Result<ContourError> CompareResampled(const Points2& design, const Points
     e.matched[i] = j;
   }
 
-  // The scale about the design's centroid. Nearest points see only what moved across the line
-  // (along it, a point's match slides with it), so the scale is fitted to the displacements
-  // across the line: (Q' - P) . n = s (P - c) . n, n the design's normal there.
+  // The scale about the design's centroid, fitted with the displacement (FitAcross): across
+  // the line, since nearest points see only what moved across it (along it, a point's match
+  // slides with it), and against the design as given, not its resampled chords (on a circle of
+  // radius r a point reads outside a chord by its sagitta, spacing^2 / 8 r: 4 um, a 0.03 %
+  // scale, at 0.5 mm on an 8 mm radius).
   const size_t n_design = design.size();
-  std::vector<Eigen::Vector2d> normal(n_design, Eigen::Vector2d::Zero());
-  for (size_t i = 0; i < n_design; ++i) {
-    const size_t next = i + 1 < n_design ? i + 1 : (closed ? 0 : n_design - 1);
-    const size_t prev = i > 0 ? i - 1 : (closed ? n_design - 1 : 0);
-    const Eigen::Vector2d t = design[next] - design[prev];
-    if (t.norm() > 0) normal[i] = Eigen::Vector2d(-t.y(), t.x()) / t.norm();
-  }
-  // Fitted over the measured points, each against the design point nearest it: the design is a
-  // clean, dense line, so that is the foot of the perpendicular and the distance across the line
-  // is unbiased. (From the design side, the nearest of wandering centres is biased towards the
-  // line, by a few percent of the scale once the wander reaches the centres' spacing.)
-  // The foot is taken on the design's segments either side of the nearest design point (on a
-  // curve, the nearest point's own normal would see a point half a spacing along as inside
-  // the curve by the sagitta, and the scale would shrink with it).
-  double num = 0, den = 0;
-  for (size_t k = 0; k < moved.size(); ++k) {
-    const int l = from_measured[k];
-    if (l < 0) continue;
-    Eigen::Vector2d foot = design[l], n = normal[l];
-    double best = (moved[k] - design[l]).squaredNorm();
-    for (int side : {-1, 1}) {
-      const long m = static_cast<long>(l) + side;
-      if (!closed && (m < 0 || m >= static_cast<long>(n_design))) continue;
-      const Eigen::Vector2d other = design[(m + n_design) % n_design];
-      const Eigen::Vector2d ab = other - design[l];
-      const double len2 = ab.squaredNorm();
-      if (!(len2 > 0)) continue;
-      const double t = std::clamp((moved[k] - design[l]).dot(ab) / len2, 0.0, 1.0);
-      const Eigen::Vector2d f = design[l] + t * ab;
-      if ((moved[k] - f).squaredNorm() < best) {
-        best = (moved[k] - f).squaredNorm();
-        foot = f;
-        const Eigen::Vector2d nn(-ab.y() * side, ab.x() * side);  // same sense as normal[l]
-        n = nn.dot(normal[l]) >= 0 ? Eigen::Vector2d(nn.normalized()) : Eigen::Vector2d(-nn.normalized());
-      }
-    }
-    const double pn = (foot - c).dot(n);
-    num += pn * (moved[k] - foot).dot(n);
-    den += pn * pn;
-  }
-  const double s = den > 0 ? num / den : 0.0;
+  const double s = fit.s;
   e.scale_pct = 100.0 * s;
+  // The local error after the scale: each matched point's distance to the design as given,
+  // scaled about the centroid.
+  Points2 scaled(line.size());
+  for (size_t i = 0; i < line.size(); ++i) scaled[i] = c + (1.0 + s) * (line[i] - c);
   double ss = 0;
-  // The design scaled about its centroid; the local error after the scale is the matched
-  // point's distance to it: to the two segments either side of the design point (at a corner,
-  // one normal alone would measure along the other leg).
-  std::vector<Eigen::Vector2d> scaled(n_design);
-  for (size_t i = 0; i < n_design; ++i) scaled[i] = c + (1.0 + s) * (design[i] - c);
-  const auto to_segment = [](const Eigen::Vector2d& q, const Eigen::Vector2d& a,
-                             const Eigen::Vector2d& b) {
-    const Eigen::Vector2d ab = b - a;
-    const double len2 = ab.squaredNorm();
-    const double t = len2 > 0 ? std::clamp((q - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
-    return (q - (a + t * ab)).norm();
-  };
-  Points2 matched_points(n_design);
-  for (size_t i = 0; i < n_design; ++i) matched_points[i] = moved[e.matched[i]];
-  // The scale moves the line along itself too, so the nearest part of the scaled line is found
-  // anew for each matched point.
-  const std::vector<int> on_scaled = Nearest(matched_points, scaled);
   for (size_t i = 0; i < n_design; ++i) {
-    const Eigen::Vector2d& q = matched_points[i];
-    const double local = (q - design[i]).norm();
-    const size_t k = static_cast<size_t>(std::max(0, on_scaled[i]));
-    double after = (q - scaled[k]).norm();
-    // Either side of it, across the seam of a closed contour.
-    if (k > 0 || closed) {
-      after = std::min(after, to_segment(q, scaled[k > 0 ? k - 1 : n_design - 1], scaled[k]));
-    }
-    if (k + 1 < n_design || closed) {
-      after = std::min(after, to_segment(q, scaled[k], scaled[k + 1 < n_design ? k + 1 : 0]));
-    }
-    e.local_mm.push_back(local);
+    const Eigen::Vector2d& q = moved[e.matched[i]];
+    const double after = FootOn(q, scaled, closed).distance;
+    e.local_mm.push_back((q - design[i]).norm());
     e.local_after_scale_mm.push_back(after);
-    e.error_mm.push_back(e.offset_mm.norm() + local);  // eq. 23
+    e.error_mm.push_back(e.offset_mm.norm() + e.local_mm.back());  // eq. 23
     ss += after * after;
     e.local_max_mm = std::max(e.local_max_mm, after);
   }
@@ -292,7 +305,7 @@ Result<ContourError> CompareContour(const Points2& design, const Points2& measur
   if (closed) length += (design.back() - design.front()).norm();
   const double spacing = length / static_cast<double>(measured.size());
   const Points2 resampled = spacing > 0 ? Resample(design, spacing, &closed) : design;
-  return CompareResampled(resampled, measured, closed);
+  return CompareResampled(resampled, design, measured, closed);
 }
 
 }  // namespace insitu::inspect

@@ -477,7 +477,15 @@ Result<Report> RunInspectGroovesJob(const LoadedJob& job, const RunOptions& opti
       inspect::GrooveOptions o = g.groove;
       o.expected_x_mm = NAN;  // each profile of the sample is already cut about its groove
       auto choice = inspect::ChooseAlpha(sample, o);
-      if (!choice.ok()) return choice.status().Prefixed("alpha");
+      if (!choice.ok()) {
+        // Why, from the sample's first profile at the middle candidate.
+        o.alpha_per_mm = 20.0;
+        const inspect::Groove first = inspect::FitGroove(sample.front(), o);
+        return FailedPrecondition("no profile holds a groove (of " +
+                                  std::to_string(sample.size()) +
+                                  " sampled across the contours; the first: " + first.why +
+                                  "): is anything engraved where the design says?");
+      }
       alpha = choice->alpha_per_mm;
       std::vector<double> a, rms;
       for (size_t k = 0; k < choice->candidates.size(); ++k) {
@@ -599,7 +607,9 @@ Result<Report> RunInspectGroovesJob(const LoadedJob& job, const RunOptions& opti
     if (!fitted_all.ok()) return finish(false, fitted_all.ToString());
   }
 
-  if (fitted == 0) return finish(false, "no profile holds a groove: nothing engraved where the design says?");
+  if (fitted == 0) {
+    return finish(false, "no profile holds a groove: is anything engraved where the design says?");
+  }
   report.metrics["groove_width_um_mean"] = 1e3 * width_sum / fitted;
   report.metrics["groove_depth_um_mean"] = 1e3 * depth_sum / fitted;
   report.metrics["groove_fit_rms_um"] = 1e3 * rms_sum / fitted;

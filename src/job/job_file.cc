@@ -351,6 +351,7 @@ void ReadWorld(ConfigReader& r, sim::WorldOptions* w) {
   fa.Read("camera_corrupt_frame_at", &w->faults.camera_corrupt_frame_at);
   fa.Read("scanner_error_at_command", &w->faults.scanner_error_at_command);
   fa.Read("stage_stuck", &w->faults.stage_stuck);
+  fa.Read("profiler_stop_at_profile", &w->faults.profiler_stop_at_profile);
   if (fa.ok()) fa.FailFromValidate(w->faults.Validate());
   ConfigReader& b = r.Section("board");
   sim::BoardOptions& bo = w->board;

@@ -117,7 +117,11 @@ bool SimWorld::SurfaceBlocks(const Eigen::Vector3d& from, const Eigen::Vector3d&
   const bool near_edge = near_block || scene_->DistanceToPartEdge(from.x(), from.y()) < reach;
   const bool near_marks = marks_->MarkedNear(from.x(), from.y(), 1.0);
   if (!near_edge && !near_marks) return false;  // a smooth, gently curved top hides nothing
-  const double clear_z = near_edge ? scene_->stage_z() + tallest + 0.01 : from.z() + 1.0;
+  // Marks only lower the surface: beside them the segment is clear once above the part's
+  // unmarked top there.
+  const double clear_z = near_edge ? scene_->stage_z() + tallest + 0.01
+                                   : scene_->stage_z() + scene_->TrueHeightAt(from.x(), from.y()) +
+                                         1e-3;
   // 5 um steps along the horizontal: under the grooves' and the cells' scale.
   const double step = horizontal > 0 ? std::min(1.0, 0.005 / horizontal) : 1.0;
   for (double s = step; s <= 1.0; s += step) {
@@ -180,19 +184,34 @@ Result<SimWorld::ProfileShot> SimWorld::GrabProfile() {
     }
     if (z < o.z_min_mm || z > o.z_max_mm) continue;
     const Eigen::Vector3d p = base + z * axis;
-    // Light returned: albedo x cos(incidence) from the fan, the camera on the lit side.
+    // Light returned: albedo x cos(incidence) from the fan, the camera on the lit side. Away
+    // from marks, walls and the block the top is smooth and all but level (a clamping bow
+    // tilts it by a few hundredths): its normal is taken as up, and nothing can hide it.
+    // Near: within a wall's height (plus margin) of it, farther than the fan (+-16 deg) or the
+    // camera (25 deg) can look past one.
+    const double wall_reach = scene_->part_max_height() + 3.0;
+    const double block_reach =
+        options_.block.plate_thickness_mm + options_.block.height_mm + 3.0;
+    const bool rough = marks_->MarkedNear(p.x(), p.y(), 1.0) ||
+                       scene_->DistanceToPartEdge(p.x(), p.y()) < wall_reach ||
+                       (options_.block.present &&
+                        std::hypot(p.x() - options_.block.position_mm[0],
+                                   p.y() - options_.block.position_mm[1]) <
+                            0.75 * options_.block.plate_mm + block_reach);
     const double e = 0.005;
     const Eigen::Vector3d normal =
-        Eigen::Vector3d(-(TrueSurfaceZ(p.x() + e, p.y()) - TrueSurfaceZ(p.x() - e, p.y())) / (2 * e),
-                        -(TrueSurfaceZ(p.x(), p.y() + e) - TrueSurfaceZ(p.x(), p.y() - e)) / (2 * e),
-                        1.0)
-            .normalized();
+        rough ? Eigen::Vector3d(
+                    -(TrueSurfaceZ(p.x() + e, p.y()) - TrueSurfaceZ(p.x() - e, p.y())) / (2 * e),
+                    -(TrueSurfaceZ(p.x(), p.y() + e) - TrueSurfaceZ(p.x(), p.y() - e)) / (2 * e),
+                    1.0)
+                    .normalized()
+              : Eigen::Vector3d::UnitZ();
     const Eigen::Vector3d to_light = (emitter - p).normalized(), to_camera = (camera - p).normalized();
     const bool on_part = scene_->TrueHeightAt(p.x(), p.y()) > 0;
     const double albedo = (on_part ? scene_->PartAlbedoAt(p.x(), p.y()) : stage_albedo) *
                           MarkFactor(p.x(), p.y(), 0.0, on_part);
     if (albedo * normal.dot(to_light) < o.min_signal || normal.dot(to_camera) <= 0.02) continue;
-    if (SurfaceBlocks(p, emitter) || SurfaceBlocks(p, camera)) continue;
+    if (rough && (SurfaceBlocks(p, emitter) || SurfaceBlocks(p, camera))) continue;
     double reading = z + speckle(profiler_rng_);
     if (o.spike_rate > 0 && unit(profiler_rng_) < o.spike_rate) {
       reading += o.spike_max_mm * (2.0 * unit(profiler_rng_) - 1.0);

@@ -43,8 +43,11 @@ class PanelShape : public PartShape {
   double SignedDistance2D(double x, double y) const override {
     double d = BoxSd(x, y, hx_, hy_);
     for (const auto& h : holes_) {
-      const double ex = x - h[0], ey = y - h[1];
-      d = std::max(d, hole_r_ - std::sqrt(ex * ex + ey * ey));
+      // A hole changes the distance only nearer than hole_r_ - d to its centre.
+      const double ex = x - h[0], ey = y - h[1], reach = hole_r_ - d;
+      if (reach > 0 && ex * ex + ey * ey < reach * reach) {
+        d = std::max(d, hole_r_ - std::sqrt(ex * ex + ey * ey));
+      }
     }
     return d;
   }

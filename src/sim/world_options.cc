@@ -335,6 +335,9 @@ Status FaultOptions::Validate() const {
   if (scanner_error_at_command < -1) {
     return InvalidValue("scanner_error_at_command", ">= -1", scanner_error_at_command);
   }
+  if (profiler_stop_at_profile < -1) {
+    return InvalidValue("profiler_stop_at_profile", ">= -1", profiler_stop_at_profile);
+  }
   return Status::Ok();
 }
 

@@ -196,5 +196,62 @@ TEST(Contours, AClosedDesignComparesCleanAcrossItsSeam) {
   EXPECT_EQ(e->design.size(), measured.size());
 }
 
+// What a line profiler gives: one centre per station along the design, found on the profile
+// across the groove there, so each centre shows only the contour's displacement across the line
+// (displaced along a side, the groove slides along the profile's line unseen). The rounded
+// rectangle displaced by (0.3, -0.2) mm and 0.05 % large, one centre every 0.5 mm: the
+// offset and scale come back whole (the points' own mean would show ~0.4 and ~0.6 of the two
+// displacements: the shares of the outline running across each). The local error is the
+// corners': there the displacement along one side is across the arc.
+TEST(Contours, AContourSeenOnlyAcrossTheLineGivesItsWholeOffset) {
+  Points2 design;
+  const double r = 4.0;
+  const Vector2d corner[4] = {{41.0, 31.0}, {14.0, 31.0}, {14.0, 14.0}, {41.0, 14.0}};
+  for (int k = 0; k < 4; ++k) {
+    for (int i = 0; i <= 64; ++i) {
+      const double t = (k + i / 64.0) * M_PI / 2;
+      design.push_back(corner[k] + r * Vector2d(std::cos(t), std::sin(t)));
+    }
+  }
+  Points2 chain = design;
+  chain.push_back(design.front());
+  double length = 0;
+  for (size_t i = 1; i < chain.size(); ++i) length += (chain[i] - chain[i - 1]).norm();
+  const int n = static_cast<int>(std::round(length / 0.5));
+  const Vector2d d(0.3, -0.2), c(27.5, 22.5);
+  const double scale = 0.0005;
+  Points2 measured;
+  size_t seg = 1;
+  double start = 0;
+  for (int k = 0; k < n; ++k) {
+    const double at = (k + 0.5) * length / n;
+    while (start + (chain[seg] - chain[seg - 1]).norm() < at) start += (chain[seg] - chain[seg - 1]).norm(), ++seg;
+    const Vector2d t = (chain[seg] - chain[seg - 1]).normalized(), normal(-t.y(), t.x());
+    const Vector2d p = chain[seg - 1] + t * (at - start);
+    // Where the normal through p crosses the displaced, scaled contour (nearest crossing).
+    double best = 1e9;
+    for (size_t i = 0; i + 1 < chain.size(); ++i) {
+      const Vector2d a = c + (1 + scale) * (chain[i] - c) + d;
+      const Vector2d b = c + (1 + scale) * (chain[i + 1] - c) + d;
+      const Vector2d ab = b - a;
+      const double den = normal.x() * ab.y() - normal.y() * ab.x();
+      if (std::abs(den) < 1e-12) continue;
+      // p + u normal = a + v ab
+      const Vector2d w = a - p;
+      const double u = (w.x() * ab.y() - w.y() * ab.x()) / den;
+      const double v = (w.x() * normal.y() - w.y() * normal.x()) / den;
+      if (v >= 0 && v <= 1 && std::abs(u) < std::abs(best)) best = u;
+    }
+    measured.push_back(p + best * normal);
+  }
+  auto e = CompareContour(design, measured, /*closed=*/true);
+  ASSERT_TRUE(e.ok()) << e.status().ToString();
+  EXPECT_NEAR(e->offset_mm.x(), -0.3, 0.001);
+  EXPECT_NEAR(e->offset_mm.y(), 0.2, 0.001);
+  EXPECT_NEAR(e->scale_pct, 0.05, 0.001);
+  // Eq. 22's matching at the corners, where the profiles' normals fan out: a few um.
+  EXPECT_LT(e->local_max_mm, 0.01);
+}
+
 }  // namespace
 }  // namespace insitu::inspect

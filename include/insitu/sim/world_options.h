@@ -323,6 +323,7 @@ struct FaultOptions {
   int camera_corrupt_frame_at = -1;   // that frame arrives with a truncated payload
   int scanner_error_at_command = -1;  // that scanner command (pointer line or list) fails
   bool stage_stuck = false;           // every stage move fails to arrive
+  int profiler_stop_at_profile = -1;  // from that profile on, the line profiler sends nothing
 
   Status Validate() const;
 };

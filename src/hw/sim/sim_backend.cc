@@ -252,6 +252,14 @@ class SimProfiler : public Profiler {
 
  protected:
   Result<RangeProfile> GrabProfile() override {
+    const int stop = world_->options().faults.profiler_stop_at_profile;
+    if (stop >= 0 && grabbed_ >= stop) {
+      world_->Advance(1.0);
+      return Status(StatusCode::kDeviceError,
+                    "line profiler: no profile within 1 s of the trigger (injected: it stopped "
+                    "sending after " + std::to_string(stop) + " profiles)");
+    }
+    ++grabbed_;
     INSITU_ASSIGN_OR_RETURN(sim::SimWorld::ProfileShot shot, world_->GrabProfile());
     const ProfilerInfo i = info();
     RangeProfile p;
@@ -266,6 +274,7 @@ class SimProfiler : public Profiler {
 
  private:
   std::shared_ptr<sim::SimWorld> world_;
+  int grabbed_ = 0;
 };
 
 }  // namespace
