@@ -197,27 +197,39 @@ Foot FootOn(const Eigen::Vector2d& q, const Points2& line, bool closed) {
 // d, until d settles.
 struct Fit {
   Eigen::Vector2d d = Eigen::Vector2d::Zero();
-  double s = 0.0;
+  double s = 0.0;             // isotropic scale
+  double e1 = 0.0, e2 = 0.0;  // stretch: [[e1, e2], [e2, -e1]] (a clamped panel's bending)
+  // The bending as a displacement at p (about the centroid c).
+  Eigen::Vector2d Bend(const Eigen::Vector2d& p, const Eigen::Vector2d& c) const {
+    const Eigen::Vector2d u = p - c;
+    return {s * u.x() + e1 * u.x() + e2 * u.y(), s * u.y() + e2 * u.x() - e1 * u.y()};
+  }
 };
 Fit FitAcross(const Points2& measured, const Points2& line, bool closed,
               const Eigen::Vector2d& c) {
+  using Vector5d = Eigen::Matrix<double, 5, 1>;
+  using Matrix5d = Eigen::Matrix<double, 5, 5>;
   Fit fit;
   for (int round = 0; round < 5; ++round) {
-    Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+    Matrix5d ata = Matrix5d::Zero();
+    Vector5d atb = Vector5d::Zero();
     for (const Eigen::Vector2d& q : measured) {
       const Foot f = FootOn(q - fit.d, line, closed);
       if (!std::isfinite(f.distance)) continue;
-      const Eigen::Vector3d row(f.normal.x(), f.normal.y(), (f.point - c).dot(f.normal));
+      const Eigen::Vector2d u = f.point - c, n = f.normal;
+      Vector5d row;
+      row << n.x(), n.y(), u.dot(n), u.x() * n.x() - u.y() * n.y(), u.y() * n.x() + u.x() * n.y();
       ata += row * row.transpose();
-      atb += row * (q - f.point).dot(f.normal);
+      atb += row * (q - f.point).dot(n);
     }
-    const Eigen::FullPivLU<Eigen::Matrix3d> lu(ata);
-    if (lu.rank() < 3) break;  // a straight design: no scale and one offset component free
-    const Eigen::Vector3d x = lu.solve(atb);
+    const Eigen::FullPivLU<Matrix5d> lu(ata);
+    if (lu.rank() < 5) break;  // a straight design: no scale and one offset component free
+    const Vector5d x = lu.solve(atb);
     const bool settled = (x.head<2>() - fit.d).norm() < 1e-7;
     fit.d = x.head<2>();
     fit.s = x(2);
+    fit.e1 = x(3);
+    fit.e2 = x(4);
     if (settled) break;
   }
   return fit;
@@ -257,18 +269,19 @@ static Result<ContourError> CompareResampled(const Points2& design, const Points
     e.matched[i] = j;
   }
 
-  // The scale about the design's centroid, fitted with the displacement (FitAcross): across
+  // The bending about the design's centroid (an isotropic scale and a stretch, symmetric: a
+  // rotation stays in the local error), fitted with the displacement (FitAcross): across
   // the line, since nearest points see only what moved across it (along it, a point's match
   // slides with it), and against the design as given, not its resampled chords (on a circle of
   // radius r a point reads outside a chord by its sagitta, spacing^2 / 8 r: 4 um, a 0.03 %
   // scale, at 0.5 mm on an 8 mm radius).
   const size_t n_design = design.size();
-  const double s = fit.s;
-  e.scale_pct = 100.0 * s;
-  // The local error after the scale: each matched point's distance to the design as given,
-  // scaled about the centroid.
+  e.scale_pct = 100.0 * fit.s;
+  e.stretch_pct = 100.0 * std::hypot(fit.e1, fit.e2);
+  // The local error after the bending: each matched point's distance to the design as given,
+  // scaled and stretched about the centroid.
   Points2 scaled(line.size());
-  for (size_t i = 0; i < line.size(); ++i) scaled[i] = c + (1.0 + s) * (line[i] - c);
+  for (size_t i = 0; i < line.size(); ++i) scaled[i] = line[i] + fit.Bend(line[i], c);
   double ss = 0;
   for (size_t i = 0; i < n_design; ++i) {
     const Eigen::Vector2d& q = moved[e.matched[i]];

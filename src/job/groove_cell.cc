@@ -180,10 +180,10 @@ Eigen::Vector2d PanelFrame::ToMachine(const Eigen::Vector2d& w) const {
 double PanelFrame::rotation_deg() const { return std::atan2(x_axis.y(), x_axis.x()) / kDeg; }
 
 PanelFrame PanelFrame::FromHoles(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
-                                 double top_z) {
+                                 double distance_mm, double top_z) {
   PanelFrame f;
-  f.origin_mm = a;
   f.x_axis = (b - a).normalized();
+  f.origin_mm = 0.5 * (a + b) - 0.5 * distance_mm * f.x_axis;
   f.y_axis = {-f.x_axis.y(), f.x_axis.x()};
   f.top_z_mm = top_z;
   return f;
@@ -281,7 +281,8 @@ Result<DatumResult> MeasureDatums(hw::Axis& axis, hw::Profiler& profiler,
     out.rim_points += static_cast<int>(rim.size());
   }
   out.rim_rms_mm = std::sqrt(ss / out.rim_points);
-  out.frame = PanelFrame::FromHoles(out.hole_mm[0], out.hole_mm[1], MedianOf(tops));
+  out.frame = PanelFrame::FromHoles(out.hole_mm[0], out.hole_mm[1],
+                                    (spec.hole_b_mm - spec.hole_a_mm).norm(), MedianOf(tops));
   return out;
 }
 

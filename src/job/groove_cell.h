@@ -55,7 +55,12 @@ struct PanelFrame {
   Eigen::Vector2d ToWorkpiece(const Eigen::Vector2d& machine_xy) const;
   Eigen::Vector2d ToMachine(const Eigen::Vector2d& workpiece_xy) const;
   double rotation_deg() const;
-  static PanelFrame FromHoles(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double top_z);
+  // The frame that best fits the two holes as measured (a, b) to where the panel's drawing puts
+  // them, (0, 0) and (distance, 0): the rigid least-squares fit of the pair, anchored at their
+  // midpoint (each hole's measuring error counts half; on hole A alone it would count whole),
+  // x along a to b.
+  static PanelFrame FromHoles(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                              double distance_mm, double top_z);
 };
 
 // Where the machine builder's fixture puts the panel's tooling holes (nominal, machine xy),

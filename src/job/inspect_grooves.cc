@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "insitu/core/log.h"
+#include "insitu/geometry/cloud.h"
 #include "insitu/geometry/surface.h"
 #include "insitu/inspect/contours.h"
 #include "insitu/inspect/groove.h"
@@ -188,12 +189,12 @@ Result<PanelFrame> HolesInCloud(const geometry::Cloud& cloud, const GrooveJobSpe
   for (int h = 0; h < 2; ++h) {
     const char* name = h == 0 ? "tooling hole A" : "tooling hole B";
     const Eigen::Vector2d pin = h == 0 ? s.pin_a_mm : s.pin_b_mm;
-    // The top around the hole, from the ring 1-4 mm beyond its rim (wherever the fixture put it
-    // within 2 mm).
+    // The top around the hole, from the ring 1-2 mm beyond its rim (wherever the fixture put
+    // it within half a millimetre).
     std::vector<double> ring;
     for (const geometry::CloudPoint& p : cloud) {
       const double d = (p.point_in_galvo.head<2>().cast<double>() - pin).norm();
-      if (d > r + 3.0 && d < r + 6.0) ring.push_back(p.point_in_galvo.z());
+      if (d > r + 1.0 && d < r + 2.0) ring.push_back(p.point_in_galvo.z());
     }
     if (ring.size() < 20) {
       return FailedPrecondition(std::string(name) + Fmt(": the scan saw %.0f points around it at "
@@ -205,7 +206,7 @@ Result<PanelFrame> HolesInCloud(const geometry::Cloud& cloud, const GrooveJobSpe
     std::map<int, std::vector<Eigen::Vector3d>> lines;
     for (const geometry::CloudPoint& p : cloud) {
       const Eigen::Vector2d q = p.point_in_galvo.head<2>().cast<double>();
-      if ((q - pin).norm() < r + 3.0) lines[p.line].push_back(p.point_in_galvo.cast<double>());
+      if ((q - pin).norm() < r + 2.0) lines[p.line].push_back(p.point_in_galvo.cast<double>());
     }
     std::vector<Eigen::Vector2d> rim;
     for (auto& [line, pts] : lines) {
@@ -226,10 +227,16 @@ Result<PanelFrame> HolesInCloud(const geometry::Cloud& cloud, const GrooveJobSpe
       std::vector<double> sorted = gaps;
       std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
       const double spacing = sorted[sorted.size() / 2];
-      // A chord shorter than a fifth of the diameter grazes the rim: its ends say little.
-      if (!(gaps[widest] > std::max(5.0 * spacing, 0.4 * r))) continue;
+      // A chord shorter than a fifth of the diameter grazes the rim: its ends say little. A gap
+      // that does not straddle the pin, or is longer than the hole, is no chord of it (points
+      // the stripe's extraction left out, the scan's end).
       const Eigen::Vector3d& a = on_top[widest];
       const Eigen::Vector3d& b = on_top[widest + 1];
+      if (!(gaps[widest] > std::max(5.0 * spacing, 0.4 * r))) continue;
+      if (!(gaps[widest] < 2.0 * r + 0.5 && a.y() < pin.y() + 0.5 * r &&
+            b.y() > pin.y() - 0.5 * r)) {
+        continue;
+      }
       rim.push_back({a.x(), a.y() + 0.5 * spacing});
       rim.push_back({b.x(), b.y() - 0.5 * spacing});
     }
@@ -240,6 +247,23 @@ Result<PanelFrame> HolesInCloud(const geometry::Cloud& cloud, const GrooveJobSpe
     }
     auto circle = FitCircle2(rim);
     if (!circle.ok()) return circle.status().Prefixed(name);
+    {
+      // Rim points far off the circle (a rim the stripe's extraction blurred): left out once,
+      // beyond 4 robust deviations of the others.
+      std::vector<double> off;
+      for (const auto& q : rim) off.push_back(std::abs((q - circle->centre).norm() - circle->radius));
+      std::vector<double> sorted = off;
+      std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+      const double limit = 4.0 * 1.4826 * sorted[sorted.size() / 2] + 1e-3;
+      std::vector<Eigen::Vector2d> kept;
+      for (size_t i = 0; i < rim.size(); ++i) {
+        if (off[i] <= limit) kept.push_back(rim[i]);
+      }
+      if (kept.size() >= 6 && kept.size() < rim.size()) {
+        auto refit = FitCircle2(kept);
+        if (refit.ok()) circle = refit;
+      }
+    }
     centre[h] = circle->centre;
     tops[h] = top;
     notes->push_back(std::string(name) +
@@ -247,7 +271,8 @@ Result<PanelFrame> HolesInCloud(const geometry::Cloud& cloud, const GrooveJobSpe
                          centre[h].y(), 2 * circle->radius) +
                      Fmt(" (%.0f chords, rim rms %.1f um)", rim.size() / 2.0, 1e3 * circle->rms));
   }
-  return PanelFrame::FromHoles(centre[0], centre[1], 0.5 * (tops[0] + tops[1]));
+  return PanelFrame::FromHoles(centre[0], centre[1], (s.pin_b_mm - s.pin_a_mm).norm(),
+                               0.5 * (tops[0] + tops[1]));
 }
 
 // The fixture's nominal top as a surface (a plane at surface_z_mm over the design's extent):
@@ -363,6 +388,9 @@ Result<Report> RunInspectGroovesJob(const LoadedJob& job, const RunOptions& opti
           [&](int done, int) { progress.Update(done); }, options.cancel);
       if (!scanned.ok()) return finish(false, "scan: " + scanned.status().ToString());
       report.metrics["points"] = static_cast<double>(scanned->cloud.size());
+      const Status saved = geometry::SaveCloudPly(scanned->cloud, (dir / "cloud.ply").string());
+      if (!saved.ok()) return finish(false, saved.ToString());
+      report.artifacts["cloud"] = "cloud.ply";
       auto frame = HolesInCloud(scanned->cloud, g, &report.warnings);
       if (!frame.ok()) return finish(false, "registration: " + frame.status().ToString());
       galvo_frame = *frame;
@@ -376,7 +404,8 @@ Result<Report> RunInspectGroovesJob(const LoadedJob& job, const RunOptions& opti
           galvo_frame.rotation_deg() -
           std::atan2((g.pin_b_mm - g.pin_a_mm).y(), (g.pin_b_mm - g.pin_a_mm).x()) / kDeg;
     } else {
-      galvo_frame = PanelFrame::FromHoles(g.pin_a_mm, g.pin_b_mm, g.surface_z_mm);
+      galvo_frame = PanelFrame::FromHoles(g.pin_a_mm, g.pin_b_mm, (g.pin_b_mm - g.pin_a_mm).norm(),
+                                          g.surface_z_mm);
     }
     std::vector<pattern::Segment2> placed;
     for (const pattern::Polyline& c : contours) {
@@ -630,7 +659,7 @@ Result<Report> RunInspectGroovesJob(const LoadedJob& job, const RunOptions& opti
   report.metrics["contours_matched"] = static_cast<double>(matches.size());
   report.metrics["contour_clusters"] = static_cast<double>(clusters.size());
   Eigen::Vector2d offset_sum = Eigen::Vector2d::Zero();
-  double scale_sum = 0, local_max = 0;
+  double scale_sum = 0, stretch_sum = 0, local_max = 0;
   std::ostringstream per;
   per << "[";
   PlotSpec map;
@@ -638,10 +667,11 @@ Result<Report> RunInspectGroovesJob(const LoadedJob& job, const RunOptions& opti
   map.x_label = "x (mm, workpiece frame)";
   map.y_label = "y (mm)";
   PlotSpec split;
-  split.title = "Contour error split: offset |E|, scale (bending) and local, per contour";
+  split.title = "Contour error split: offset |E|, bending (scale, stretch) and local, per contour";
   split.x_label = "contour";
   split.y_label = "um";
-  PlotSeries off_s{"offset |E|", {}, {}, PlotColor(0)}, scale_s{"scale x half size", {}, {}, PlotColor(1)},
+  PlotSeries off_s{"offset |E|", {}, {}, PlotColor(0)},
+      scale_s{"bending: (|scale| + stretch) x half size", {}, {}, PlotColor(1)},
       local_s{"local rms", {}, {}, PlotColor(2)}, local_m{"local max", {}, {}, PlotColor(3)};
   std::vector<inspect::ContourError> errors;
   for (const inspect::ContourMatch& match : matches) {
@@ -650,17 +680,20 @@ Result<Report> RunInspectGroovesJob(const LoadedJob& job, const RunOptions& opti
     if (!e.ok()) return finish(false, "contour " + std::to_string(match.design) + ": " + e.status().ToString());
     offset_sum += e->offset_mm;
     scale_sum += e->scale_pct;
+    stretch_sum += e->stretch_pct;
     local_max = std::max(local_max, e->local_max_mm);
     per << (errors.empty() ? "" : ", ")
         << Fmt("{\"design\": %.0f, \"offset_mm\": [%.5f, ", match.design, e->offset_mm.x())
-        << Fmt("%.5f], \"scale_pct\": %.5f, ", e->offset_mm.y(), e->scale_pct)
+        << Fmt("%.5f], \"scale_pct\": %.5f, \"stretch_pct\": %.5f, ", e->offset_mm.y(), e->scale_pct,
+               e->stretch_pct)
         << Fmt("\"local_rms_mm\": %.5f, \"local_max_mm\": %.5f, ", e->local_rms_mm, e->local_max_mm)
         << "\"points\": " << measured[match.measured].size() << "}";
     Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e300), hi = -lo;
     for (const auto& p : design[match.design]) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
     const double x = static_cast<double>(match.design);
     off_s.x.push_back(x), off_s.y.push_back(1e3 * e->offset_mm.norm());
-    scale_s.x.push_back(x), scale_s.y.push_back(1e3 * std::abs(e->scale_pct) * 0.01 * 0.5 * (hi - lo).norm());
+    scale_s.x.push_back(x), scale_s.y.push_back(1e3 * (std::abs(e->scale_pct) + e->stretch_pct) *
+                                                    0.01 * 0.5 * (hi - lo).norm());
     local_s.x.push_back(x), local_s.y.push_back(1e3 * e->local_rms_mm);
     local_m.x.push_back(x), local_m.y.push_back(1e3 * e->local_max_mm);
     errors.push_back(std::move(*e));
@@ -672,6 +705,7 @@ Result<Report> RunInspectGroovesJob(const LoadedJob& job, const RunOptions& opti
     report.metrics["contour_offset_x_mm"] = offset_sum.x() / n;
     report.metrics["contour_offset_y_mm"] = offset_sum.y() / n;
     report.metrics["contour_scale_pct"] = scale_sum / n;
+    report.metrics["contour_stretch_pct"] = stretch_sum / n;
     report.metrics["contour_local_error_max_mm"] = local_max;
   }
   if (matches.size() < contours.size()) {

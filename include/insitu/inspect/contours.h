@@ -46,7 +46,11 @@ struct ContourError {
   // correction assumes both sets equally dense.
   Points2 design;
   Eigen::Vector2d offset_mm = Eigen::Vector2d::Zero();  // E, eq. 21
-  double scale_pct = 0.0;        // measured (after the offset) against design, about its centroid
+  // The bending (a clamped panel's, seed 002's "bending deformation error"): measured (after the
+  // offset) against design about its centroid, as an isotropic scale and a stretch (a
+  // symmetric, trace-free strain: one axis longer, the one across it shorter; its magnitude).
+  double scale_pct = 0.0;
+  double stretch_pct = 0.0;
   std::vector<int> matched;      // per design point: the measured point matched (eq. 22)
   std::vector<double> local_mm;  // per design point: |P_i - Q'_j|
   // With the scale taken out too: the matched point's distance to the scaled design line
