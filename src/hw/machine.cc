@@ -83,6 +83,29 @@ Status ReplaceDevices(const MachineConfig& config, std::shared_ptr<sim::SimWorld
   } else if (!config.camera.empty() && config.camera != config.backend) {
     return NotFound("camera backend '" + config.camera + "' does not exist (known: aravis)");
   }
+  if (config.profiler == "aravis") {
+    aravis::ProfilerOptions options = config.aravis_profiler.profiler;
+    if (!config.aravis_profiler.simulate_on.empty()) {
+      if (world == nullptr || m->profiler == nullptr) {
+        return InvalidArgument(
+            "aravis_profiler.simulate_on needs the sim backend with a profiler (world.profiler)");
+      }
+      std::shared_ptr<Profiler> source = std::move(m->profiler);
+      INSITU_ASSIGN_OR_RETURN(
+          std::shared_ptr<aravis::SimulatedGigEProfiler> served,
+          aravis::SimulatedGigEProfiler::Start(source, config.aravis_profiler.simulate_on,
+                                               world->options().profiler.serial));
+      served->SetLostPacketRatio(config.aravis_profiler.lost_packet_ratio);
+      m->peers.push_back(served);
+      options.device = config.aravis_profiler.simulate_on;
+      options.frame_timeout_ms += kSimulatedRenderAllowanceMs;
+    } else {
+      real = true;
+    }
+    INSITU_ASSIGN_OR_RETURN(m->profiler, aravis::OpenProfiler(options));
+  } else if (!config.profiler.empty() && config.profiler != config.backend) {
+    return NotFound("profiler backend '" + config.profiler + "' does not exist (known: aravis)");
+  }
   // Real devices run on the wall clock: a settle time must really pass.
   if (real) m->clock = std::make_unique<WallClock>();
   return Status::Ok();

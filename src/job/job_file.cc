@@ -426,6 +426,26 @@ void ReadMachine(ConfigReader& root, const std::string& folder, MachineSpec* spe
   spec->calibration_path = ResolvePath(folder, calibration);
   m.ReadEnum("camera", &c.camera, {"sim", "aravis"});
   m.ReadEnum("scanner", &c.scanner, {"sim", "lmc"});
+  m.ReadEnum("profiler", &c.profiler, {"sim", "aravis"});
+  if (m.Has("aravis_profiler")) {
+    ConfigReader& a = m.Section("aravis_profiler");
+    hw::aravis::ProfilerOptions& o = c.aravis_profiler.profiler;
+    a.Read("device", &o.device);
+    a.ReadEnum("pixel_format", &o.pixel_format, {"Coord3D_C16", "Coord3D_C32f"});
+    a.ReadEnum("trigger", &o.trigger, {"software", "Line0", "Line1", "Line2", "Line3"});
+    a.Read("packet_size", &o.packet_size);
+    a.Read("buffers", &o.buffers);
+    a.Read("frame_timeout_ms", &o.frame_timeout_ms);
+    a.Read("socket_buffer_bytes", &o.socket_buffer_bytes);
+    a.Read("reconnect", &o.reconnect);
+    a.Read("simulate_on", &c.aravis_profiler.simulate_on);
+    a.Read("lost_packet_ratio", &c.aravis_profiler.lost_packet_ratio);
+    if (a.ok()) a.FailFromValidate(o.Validate());
+    if (a.ok() && !(c.aravis_profiler.lost_packet_ratio >= 0 &&
+                    c.aravis_profiler.lost_packet_ratio <= 1)) {
+      a.Fail("lost_packet_ratio", "must be in [0, 1]");
+    }
+  }
   if (m.Has("aravis")) {
     ConfigReader& a = m.Section("aravis");
     hw::aravis::CameraOptions& o = c.aravis.camera;

@@ -180,3 +180,36 @@ TEST_F(InspectGrooves, BadInputFailsByNameAndKeepsWhatWasMeasured) {
 
 }  // namespace
 }  // namespace insitu
+
+namespace insitu {
+namespace {
+
+// The profiler's mounting calibrated on the block through a GenICam 3D sensor over GigE Vision
+// (the simulated profiler served on the loopback, Coord3D_C16 in 0.5 um counts): the mount the
+// simulator was built with comes back (18 profiles of 3200 points, 1.5 um of speckle: the
+// angles to ~1e-4 rad, the translation to a few um; the bounds 10 x those).
+TEST(InspectGroovesGigE, TheMountIsCalibratedThroughAGigEVisionProfiler) {
+  testing::KeepTheWorld();
+  const fs::path dir = fs::temp_directory_path() / "insitu_calibrate_profiler_gige";
+  fs::remove_all(dir);
+  auto r = testing::RunShippedJob(
+      "calibrate_profiler.yaml",
+      {"machine.profiler=aravis", "machine.aravis_profiler.simulate_on=127.0.0.1",
+       "output.mount_file=" + (dir / "mount.yaml").string()},
+      (dir / "run").string());
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  const auto& truth = testing::LastSimWorld()->options().profiler.mount;
+  auto& m = r->metrics;
+  EXPECT_NEAR(m["mount_x_mm"], truth[0], 0.05);
+  EXPECT_NEAR(m["mount_y_mm"], truth[1], 0.05);
+  EXPECT_NEAR(m["mount_z_mm"], truth[2], 0.05);
+  for (int k = 0; k < 3; ++k) {
+    const char* name[3] = {"mount_rx_deg", "mount_ry_deg", "mount_rz_deg"};
+    EXPECT_NEAR(m[name[k]], truth[3 + k], 0.06) << name[k];  // 1e-3 rad
+  }
+  EXPECT_LT(m["mount_fit_rms_um"], 3.0);  // the 1.5 um speckle and 0.5 um counts
+  EXPECT_TRUE(fs::exists(dir / "mount.yaml"));
+}
+
+}  // namespace
+}  // namespace insitu

@@ -10,6 +10,7 @@
 
 #include "insitu/core/status.h"
 #include "insitu/hw/aravis.h"
+#include "insitu/hw/aravis_profiler.h"
 #include "insitu/hw/axis.h"
 #include "insitu/hw/camera.h"
 #include "insitu/hw/lmc.h"
@@ -57,6 +58,15 @@ struct AravisDeviceConfig {
   double lost_packet_ratio = 0.0;  // of the served camera's packets (a lossy link)
 };
 
+// A GenICam 3D line profiler through Aravis in place of the backend's (profiler: aravis).
+struct AravisProfilerConfig {
+  aravis::ProfilerOptions profiler;
+  // Backend sim only: serve the world's profiler as a GigE Vision 3D camera on this local
+  // address and open that one, so profiles travel over real GVCP/GVSP. Empty: a real sensor.
+  std::string simulate_on;
+  double lost_packet_ratio = 0.0;
+};
+
 // An LMC galvo board in place of the backend's scan head (scanner: lmc).
 struct LmcDeviceConfig {
   std::string transport = "usb";  // usb, or sim_board: the board emulator on the simulated head
@@ -72,8 +82,10 @@ struct MachineConfig {
   // backend's. A named device that cannot be opened is an error, never replaced by another.
   std::string camera;
   std::string scanner;
+  std::string profiler;  // "aravis", or empty: the backend's
   sim::WorldOptions world;  // backend "sim": the simulated world
   AravisDeviceConfig aravis;
+  AravisProfilerConfig aravis_profiler;
   LmcDeviceConfig lmc;
 };
 
