@@ -726,7 +726,8 @@ Result<Report> RunInspectGroovesJob(const LoadedJob& job, const RunOptions& opti
   std::vector<PlotSeries> bins(kBins);
   for (int b = 0; b < kBins; ++b) {
     bins[b].rgb = Heat((b + 0.5) / kBins);
-    bins[b].label = b == kBins - 1 ? Fmt("local error to %.0f um", 1e3 * local_max) : "";
+    bins[b].label = Fmt("local error %.1f-%.1f um", 1e3 * local_max * b / kBins,
+                        1e3 * local_max * (b + 1) / kBins);
   }
   for (const inspect::ContourError& e : errors) {
     for (size_t i = 0; i < e.design.size(); ++i) {
@@ -757,6 +758,20 @@ Result<Report> RunInspectGroovesJob(const LoadedJob& job, const RunOptions& opti
       pts.y.push_back(r.profile.z_mm[i]);
     }
     ps.series.push_back(pts);
+    {
+      // The fitted template (eq. 11), drawn level about the groove (the profile's tilt here is
+      // a few thousandths).
+      const double w = r.groove.template_width_mm, d = r.groove.template_depth_mm;
+      const double dd = d / std::tanh(0.25 * alpha * w);
+      PlotSeries t{Fmt("template, alpha %.0f /mm", alpha), {}, {}, PlotColor(2)};
+      for (double x : pts.x) {
+        const double u = x - r.groove.x_mm;
+        t.x.push_back(x);
+        t.y.push_back(r.groove.z_mm + 0.5 * dd * (std::tanh(alpha * (u - 0.25 * w)) -
+                                                   std::tanh(alpha * (u + 0.25 * w))));
+      }
+      ps.series.push_back(t);
+    }
     const double half = 0.25 * r.groove.width_mm;
     PlotSeries marks{"centre and half-depth points", {r.groove.x_mm - half, r.groove.x_mm, r.groove.x_mm + half},
                      {r.groove.z_mm - 0.5 * r.groove.depth_mm, r.groove.z_mm - r.groove.depth_mm,

@@ -155,20 +155,24 @@ Status SavePlotPng(const PlotSpec& spec, const std::string& path) {
   cv::putText(img, spec.x_label, {area.x + area.width / 2 - xl.width / 2, h - 20}, font, 0.55,
               black, 1, cv::LINE_AA);
   cv::putText(img, spec.y_label, {10, top - 10}, font, 0.5, black, 1, cv::LINE_AA);
-  if (!spec.series.empty()) {
+  // The legend lists the series with a label (an unlabelled series is drawn, not listed).
+  std::vector<const PlotSeries*> listed;
+  for (const PlotSeries& s : spec.series) {
+    if (!s.label.empty()) listed.push_back(&s);
+  }
+  if (!listed.empty()) {
     int lw = 0;
-    for (const PlotSeries& s : spec.series) {
-      lw = std::max(lw, cv::getTextSize(s.label, font, 0.45, 1, &base).width);
+    for (const PlotSeries* s : listed) {
+      lw = std::max(lw, cv::getTextSize(s->label, font, 0.45, 1, &base).width);
     }
-    const int lh = 20 * static_cast<int>(spec.series.size()) + 10;
+    const int lh = 20 * static_cast<int>(listed.size()) + 10;
     const cv::Rect box(area.x + area.width - lw - 60, area.y + 10, lw + 50, lh);
     cv::rectangle(img, box, cv::Scalar(255, 255, 255), cv::FILLED);
     cv::rectangle(img, box, grey, 1);
-    for (size_t i = 0; i < spec.series.size(); ++i) {
+    for (size_t i = 0; i < listed.size(); ++i) {
       const int y = box.y + 18 + 20 * static_cast<int>(i);
-      cv::line(img, {box.x + 8, y - 4}, {box.x + 32, y - 4}, Bgr(spec.series[i].rgb), 2,
-               cv::LINE_AA);
-      cv::putText(img, spec.series[i].label, {box.x + 40, y}, font, 0.45, black, 1, cv::LINE_AA);
+      cv::line(img, {box.x + 8, y - 4}, {box.x + 32, y - 4}, Bgr(listed[i]->rgb), 2, cv::LINE_AA);
+      cv::putText(img, listed[i]->label, {box.x + 40, y}, font, 0.45, black, 1, cv::LINE_AA);
     }
   }
   try {

@@ -12,7 +12,7 @@
 namespace insitu::job {
 
 struct PlotSeries {
-  std::string label;
+  std::string label;  // in the legend; empty: drawn, not listed
   std::vector<double> x, y;  // NaN y values break the line
   int rgb = 0x1f77b4;
 };
