@@ -154,14 +154,9 @@ TEST(Contours, AnEngravedContourSplitsIntoOffsetScaleAndLocalError) {
 namespace insitu::inspect {
 namespace {
 
-// A closed design as CAD gives it (a rounded rectangle's vertices, the straight sides two
-// points each, the corners many; its first point not repeated at the end) against centres
-// measured exactly on it, half a spacing along from the design's own samples: no offset, no
-// scale, and no local error but the resampled design's 0.2 mm chords cutting the corners'
-// flattened arcs (a vertex every 1.4 deg: 0.1 mm x 0.012 = 1.2 um; the chords' 1.3 um sagitta
-// on a 4 mm radius). The seam between the last and first points counts like any other
-// stretch of the contour.
-TEST(Contours, AClosedDesignComparesCleanAcrossItsSeam) {
+// A 27 x 17 mm pocket with 4 mm corners as CAD flattens it: each corner's arc 64 vertices, the
+// straight sides two points each, its first point not repeated at the end.
+Points2 RoundedPocket() {
   Points2 design;
   const double r = 4.0;
   const Vector2d corner[4] = {{41.0, 31.0}, {14.0, 31.0}, {14.0, 14.0}, {41.0, 14.0}};
@@ -171,21 +166,47 @@ TEST(Contours, AClosedDesignComparesCleanAcrossItsSeam) {
       design.push_back(corner[k] + r * Vector2d(std::cos(t), std::sin(t)));
     }
   }
-  // The measured centres: every 0.2 mm along the closed outline, from 0.1 mm past its start.
-  Points2 chain = design;
-  chain.push_back(design.front());
+  return design;
+}
+
+// A station every `spacing` (rounded to divide it) along the closed outline, from half a spacing
+// past its start: the point and the outline's unit tangent there.
+struct Station {
+  Vector2d point, tangent;
+};
+std::vector<Station> Stations(const Points2& outline, double spacing) {
+  Points2 chain = outline;
+  chain.push_back(outline.front());
   double length = 0;
   for (size_t i = 1; i < chain.size(); ++i) length += (chain[i] - chain[i - 1]).norm();
-  const int n = static_cast<int>(std::round(length / 0.2));
-  Points2 measured;
+  const int n = static_cast<int>(std::round(length / spacing));
+  std::vector<Station> out;
   size_t seg = 1;
   double start = 0;
   for (int k = 0; k < n; ++k) {
-    const double s = (k + 0.5) * length / n;
-    while (start + (chain[seg] - chain[seg - 1]).norm() < s) start += (chain[seg] - chain[seg - 1]).norm(), ++seg;
-    const Vector2d d = chain[seg] - chain[seg - 1];
-    measured.push_back(chain[seg - 1] + d * ((s - start) / d.norm()));
+    const double at = (k + 0.5) * length / n;
+    while (start + (chain[seg] - chain[seg - 1]).norm() < at) {
+      start += (chain[seg] - chain[seg - 1]).norm();
+      ++seg;
+    }
+    const Vector2d t = (chain[seg] - chain[seg - 1]).normalized();
+    out.push_back({chain[seg - 1] + t * (at - start), t});
   }
+  return out;
+}
+
+// A closed design as CAD gives it (a rounded rectangle's vertices, the straight sides two
+// points each, the corners many; its first point not repeated at the end) against centres
+// measured exactly on it, half a spacing along from the design's own samples: no offset, no
+// scale, and no local error but the resampled design's 0.2 mm chords cutting the corners'
+// flattened arcs (a vertex every 1.4 deg: 0.1 mm x 0.012 = 1.2 um; the chords' 1.3 um sagitta
+// on a 4 mm radius). The seam between the last and first points counts like any other
+// stretch of the contour.
+TEST(Contours, AClosedDesignComparesCleanAcrossItsSeam) {
+  const Points2 design = RoundedPocket();
+  // The measured centres: every 0.2 mm along the closed outline, from 0.1 mm past its start.
+  Points2 measured;
+  for (const Station& st : Stations(design, 0.2)) measured.push_back(st.point);
   auto e = CompareContour(design, measured, /*closed=*/true);
   ASSERT_TRUE(e.ok()) << e.status().ToString();
   EXPECT_LT(e->offset_mm.norm(), 1e-6);
@@ -204,30 +225,14 @@ TEST(Contours, AClosedDesignComparesCleanAcrossItsSeam) {
 // displacements: the shares of the outline running across each). The local error is the
 // corners': there the displacement along one side is across the arc.
 TEST(Contours, AContourSeenOnlyAcrossTheLineGivesItsWholeOffset) {
-  Points2 design;
-  const double r = 4.0;
-  const Vector2d corner[4] = {{41.0, 31.0}, {14.0, 31.0}, {14.0, 14.0}, {41.0, 14.0}};
-  for (int k = 0; k < 4; ++k) {
-    for (int i = 0; i <= 64; ++i) {
-      const double t = (k + i / 64.0) * M_PI / 2;
-      design.push_back(corner[k] + r * Vector2d(std::cos(t), std::sin(t)));
-    }
-  }
+  const Points2 design = RoundedPocket();
   Points2 chain = design;
   chain.push_back(design.front());
-  double length = 0;
-  for (size_t i = 1; i < chain.size(); ++i) length += (chain[i] - chain[i - 1]).norm();
-  const int n = static_cast<int>(std::round(length / 0.5));
   const Vector2d d(0.3, -0.2), c(27.5, 22.5);
   const double scale = 0.0005;
   Points2 measured;
-  size_t seg = 1;
-  double start = 0;
-  for (int k = 0; k < n; ++k) {
-    const double at = (k + 0.5) * length / n;
-    while (start + (chain[seg] - chain[seg - 1]).norm() < at) start += (chain[seg] - chain[seg - 1]).norm(), ++seg;
-    const Vector2d t = (chain[seg] - chain[seg - 1]).normalized(), normal(-t.y(), t.x());
-    const Vector2d p = chain[seg - 1] + t * (at - start);
+  for (const Station& st : Stations(design, 0.5)) {
+    const Vector2d p = st.point, normal(-st.tangent.y(), st.tangent.x());
     // Where the normal through p crosses the displaced, scaled contour (nearest crossing).
     double best = 1e9;
     for (size_t i = 0; i + 1 < chain.size(); ++i) {
