@@ -205,11 +205,14 @@ struct Fit {
     return {s * u.x() + e1 * u.x() + e2 * u.y(), s * u.y() + e2 * u.x() - e1 * u.y()};
   }
 };
-Fit FitAcross(const Points2& measured, const Points2& line, bool closed,
-              const Eigen::Vector2d& c) {
+// `terms`: 5 (offset, scale, stretch), 3 (offset, scale) or 2 (offset). Returns false when the
+// measured points do not determine them (a part of a contour: its sides in one direction only).
+bool FitAcross(const Points2& measured, const Points2& line, bool closed, const Eigen::Vector2d& c,
+               int terms, Fit* out) {
   using Vector5d = Eigen::Matrix<double, 5, 1>;
   using Matrix5d = Eigen::Matrix<double, 5, 5>;
   Fit fit;
+  bool solved = false;
   for (int round = 0; round < 5; ++round) {
     Matrix5d ata = Matrix5d::Zero();
     Vector5d atb = Vector5d::Zero();
@@ -222,17 +225,21 @@ Fit FitAcross(const Points2& measured, const Points2& line, bool closed,
       ata += row * row.transpose();
       atb += row * (q - f.point).dot(n);
     }
-    const Eigen::FullPivLU<Matrix5d> lu(ata);
-    if (lu.rank() < 5) break;  // a straight design: no scale and one offset component free
-    const Vector5d x = lu.solve(atb);
+    const Eigen::MatrixXd a = ata.topLeftCorner(terms, terms);
+    const Eigen::FullPivLU<Eigen::MatrixXd> lu(a);
+    // Determined: full rank, and not by a hair (a contour seen along one side only).
+    if (lu.rank() < terms || lu.rcond() < 1e-9) return false;
+    const Eigen::VectorXd x = lu.solve(atb.head(terms));
     const bool settled = (x.head<2>() - fit.d).norm() < 1e-7;
     fit.d = x.head<2>();
-    fit.s = x(2);
-    fit.e1 = x(3);
-    fit.e2 = x(4);
+    fit.s = terms >= 3 ? x(2) : 0.0;
+    fit.e1 = terms >= 5 ? x(3) : 0.0;
+    fit.e2 = terms >= 5 ? x(4) : 0.0;
+    solved = true;
     if (settled) break;
   }
-  return fit;
+  *out = fit;
+  return solved;
 }
 
 // `design`: the design resampled as densely as the measured points (eq. 21-22); `line`: the
@@ -244,7 +251,20 @@ static Result<ContourError> CompareResampled(const Points2& design, const Points
   const Eigen::Vector2d c = Centroid(design);  // evenly resampled: the curve's centroid
   // Eq. 21: E = design centroid - measured centroid, the measured contour's centroid being the
   // design's moved by the displacement fitted across the line (FitAcross).
-  const Fit fit = FitAcross(measured, line, closed, c);
+  // The fullest model the points determine: a part of a contour (a gap of missing grooves longer
+  // than the clustering's tolerance splits one) may fix its offset but not its bending.
+  Fit fit;
+  if (FitAcross(measured, line, closed, c, 5, &fit)) {
+    e.fitted = "offset, scale, stretch";
+  } else if (FitAcross(measured, line, closed, c, 3, &fit)) {
+    e.fitted = "offset, scale";
+  } else if (FitAcross(measured, line, closed, c, 2, &fit)) {
+    e.fitted = "offset";
+  } else {
+    return FailedPrecondition(
+        "the measured points do not determine the contour's offset (they lie along one "
+        "direction only)");
+  }
   e.offset_mm = -fit.d;
   Points2 moved(measured);
   for (Eigen::Vector2d& q : moved) q += e.offset_mm;

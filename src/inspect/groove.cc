@@ -416,21 +416,32 @@ Groove FitGroove(const Profile& profile, const GrooveOptions& o) {
         near.push_back(flank[i]);
       }
     }
-    double k = 0, b = 0;
     Eigen::Vector3d abc;
     const double zh = z0 - 0.5 * depth;
-    if (cross > 0 && cross < flank.size() && near.size() >= 3 &&
-        FitParabola(near, flank[cross].x, &abc)) {
-      // The crossing between the two points that straddle it: a parabola's root there.
-      const double a = abc[2], bb = abc[1], cc = abc[0] - zh;
-      const double lo = std::min(flank[cross - 1].x, flank[cross].x) - flank[cross].x;
-      const double hi = std::max(flank[cross - 1].x, flank[cross].x) - flank[cross].x;
-      double u = std::abs(bb) > 0 ? -cc / bb : 0.0;  // the linear root, refined by Newton
-      for (int it = 0; it < 20 && std::abs(a) > 0; ++it) u -= (cc + bb * u + a * u * u) / (bb + 2 * a * u);
-      if (!(u >= lo - 1e-9 && u <= hi + 1e-9)) u = -cc / bb;
-      half_x[side] = flank[cross].x + u;
-    } else if (cross > 0 && cross < flank.size() && FitLine(near, &k, &b) && k * sign > 0) {
-      half_x[side] = (zh - b) / k;
+    if (cross > 0 && cross < flank.size()) {
+      // The crossing between the two points that straddle it: first where the straight line
+      // through them crosses, then, where a parabola through the points about it has a root
+      // within a spacing of them (the noisy pair need not straddle the smoothed flank), that
+      // root (bisection: the parabola is monotonic over so short a bracket or it is not taken).
+      const Point& in = flank[cross - 1];
+      const Point& out = flank[cross];
+      double x = in.x + (zh - in.z) / (out.z - in.z) * (out.x - in.x);
+      if (near.size() >= 3 && FitParabola(near, out.x, &abc)) {
+        const auto f = [&](double xx) {
+          const double u = xx - out.x;
+          return abc[0] + abc[1] * u + abc[2] * u * u - zh;
+        };
+        const double step = out.x - in.x;
+        double lo = in.x - step, hi = out.x + step;
+        if (f(lo) * f(hi) < 0) {
+          for (int it = 0; it < 60; ++it) {
+            const double mid = 0.5 * (lo + hi);
+            (f(lo) * f(mid) <= 0 ? hi : lo) = mid;
+          }
+          x = 0.5 * (lo + hi);
+        }
+      }
+      half_x[side] = x;
     } else {
       half_x[side] = TemplateHalfDepthX(o.alpha_per_mm, q, sign);
     }
@@ -440,7 +451,10 @@ Groove FitGroove(const Profile& profile, const GrooveOptions& o) {
   // beam that cut it is vertical to a few degrees, so the midpoint of the two points, not
   // its foot on the surface along the surface's normal, is where its axis is.)
   const double zh = z0 - 0.5 * depth;
-  const double centre = 0.5 * (c * (half_x[0] + half_x[1]) - 2.0 * s * zh) ;
+  const double centre = 0.5 * (c * (half_x[0] + half_x[1]) - 2.0 * s * zh);
+  if (!(std::isfinite(centre) && std::isfinite(depth) && half_x[1] > half_x[0])) {
+    return fail("no half-depth points either side of the groove's bottom");
+  }
   g.ok = true;
   g.x_mm = centre;
   g.z_mm = (s * centre + z0) / c;  // the surface line above it

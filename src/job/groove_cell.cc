@@ -275,6 +275,15 @@ Result<DatumResult> MeasureDatums(hw::Axis& axis, hw::Profiler& profiler,
     }
     auto circle = FitCircle2(rim);
     if (!circle.ok()) return circle.status().Prefixed(name);
+    // The profiler places each rim to its point spacing (~7 um rms at 25 um): a circle 0.1 mm
+    // off the drawing's, or rims 50 um off it, is another feature or a misread rim.
+    if (std::abs(2.0 * circle->radius - spec.hole_diameter_mm) > 0.1 || circle->rms > 0.05) {
+      return FailedPrecondition(std::string(name) +
+                                Fmt(": its rims make a %.3f mm circle (rms %.0f um), not the "
+                                    "drawing's %.2f mm hole",
+                                    2.0 * circle->radius, 1e3 * circle->rms,
+                                    spec.hole_diameter_mm));
+    }
     out.hole_mm[h] = circle->centre;
     out.hole_diameter_mm[h] = 2.0 * circle->radius;
     ss += circle->rms * circle->rms * rim.size();

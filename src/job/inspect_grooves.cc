@@ -153,6 +153,7 @@ Result<std::vector<pattern::Polyline>> LoadContours(const GrooveJobSpec& s, int*
 // Points every `spacing` along a closed polyline, each with its unit tangent.
 struct Station {
   Eigen::Vector2d point, tangent;
+  double s_mm = 0.0;  // arc length from the contour's first point
 };
 std::vector<Station> Stations(const pattern::Polyline& c, double spacing) {
   std::vector<Eigen::Vector2d> v = c.points;
@@ -173,7 +174,7 @@ std::vector<Station> Stations(const pattern::Polyline& c, double spacing) {
     const Eigen::Vector2d d = v[seg] - v[seg - 1];
     const double len = d.norm();
     if (!(len > 0)) continue;
-    out.push_back({v[seg - 1] + d * std::clamp((s - start) / len, 0.0, 1.0), d / len});
+    out.push_back({v[seg - 1] + d * std::clamp((s - start) / len, 0.0, 1.0), d / len, s});
   }
   return out;
 }
@@ -264,6 +265,14 @@ Result<PanelFrame> HolesInCloud(const geometry::Cloud& cloud, const GrooveJobSpe
         if (refit.ok()) circle = refit;
       }
     }
+    // A circle far from the drawing's hole is another feature, or rims misread: refused by
+    // name. The side camera's chords come out short by up to a few samples (~0.3 mm on 6).
+    if (std::abs(2.0 * circle->radius - s.hole_diameter_mm) > 0.6 || circle->rms > 0.15) {
+      return FailedPrecondition(std::string(name) +
+                                Fmt(": the scan's rims make a %.3f mm circle (rms %.0f um), not the "
+                                    "drawing's %.2f mm hole",
+                                    2.0 * circle->radius, 1e3 * circle->rms, s.hole_diameter_mm));
+    }
     centre[h] = circle->centre;
     tops[h] = top;
     notes->push_back(std::string(name) +
@@ -304,6 +313,7 @@ struct ProfileRecord {
   double s_mm = 0.0;                 // arc length along the design contour
   Eigen::Vector2d design_mm;         // the station, workpiece frame
   inspect::Profile profile;          // cut about the expected groove
+  double expected_x_mm = 0.0;       // where the design says the groove is, sensor frame
   inspect::Groove groove;
   Eigen::Vector2d centre_mm = Eigen::Vector2d::Constant(NAN);  // workpiece frame
   hw::AxisPose axes;
@@ -488,52 +498,52 @@ Result<Report> RunInspectGroovesJob(const LoadedJob& job, const RunOptions& opti
   report.metrics["datum_rim_rms_um"] = 1e3 * datums->rim_rms_mm;
   report.metrics["datum_hole_distance_mm"] = (datums->hole_mm[1] - datums->hole_mm[0]).norm();
 
-  // alpha from data (seed 002 Fig. 4), then every profile's groove, saved to grooves.csv: run
-  // once the profiles are in, or on the profiles taken when the profiler stops sending.
+  // alpha from data (seed 002 Fig. 4), then every profile's groove, saved to grooves.csv with the
+  // reason of every profile without one: run once the profiles are in, or on the profiles taken
+  // when the scan ends early. Errors: no profile holds a groove (after saving).
   double alpha = g.alpha_per_mm;
   int fitted = 0;
   double width_sum = 0, depth_sum = 0, rms_sum = 0;
   std::vector<ProfileRecord> records;
   const auto fit_and_save = [&]() -> Status {
-    if (!(alpha > 0)) {
+    bool chosen = alpha > 0;
+    if (!chosen && !records.empty()) {
       std::vector<inspect::Profile> sample;
       const size_t stride = std::max<size_t>(1, records.size() / g.alpha_sample);
       for (size_t k = 0; k < records.size() && static_cast<int>(sample.size()) < g.alpha_sample;
            k += stride) {
-        inspect::Profile p = records[k].profile;
-        sample.push_back(p);
+        sample.push_back(records[k].profile);
       }
       inspect::GrooveOptions o = g.groove;
       o.expected_x_mm = NAN;  // each profile of the sample is already cut about its groove
       auto choice = inspect::ChooseAlpha(sample, o);
-      if (!choice.ok()) {
-        // Why, from the sample's first profile at the middle candidate.
-        o.alpha_per_mm = 20.0;
-        const inspect::Groove first = inspect::FitGroove(sample.front(), o);
-        return FailedPrecondition("no profile holds a groove (of " +
-                                  std::to_string(sample.size()) +
-                                  " sampled across the contours; the first: " + first.why +
-                                  "): is anything engraved where the design says?");
+      if (choice.ok()) {
+        chosen = true;
+        alpha = choice->alpha_per_mm;
+        std::vector<double> a, rms;
+        for (size_t k = 0; k < choice->candidates.size(); ++k) {
+          a.push_back(choice->candidates[k]);
+          rms.push_back(1e3 * choice->rms_mm[k]);
+        }
+        PlotSpec ps;
+        ps.title = Fmt("Template sharpness from data (seed 002 Fig. 4): alpha %.0f /mm", alpha);
+        ps.x_label = "alpha (1/mm)";
+        ps.y_label = "rms residual over the sample (um)";
+        ps.series.push_back({"candidates", a, rms, PlotColor(0)});
+        if (SavePlotPng(ps, (dir / "alpha.png").string()).ok()) {
+          report.artifacts["alpha_plot"] = "alpha.png";
+        }
       }
-      alpha = choice->alpha_per_mm;
-      std::vector<double> a, rms;
-      for (size_t k = 0; k < choice->candidates.size(); ++k) {
-        a.push_back(choice->candidates[k]);
-        rms.push_back(1e3 * choice->rms_mm[k]);
-      }
-      PlotSpec ps;
-      ps.title = Fmt("Template sharpness from data (seed 002 Fig. 4): alpha %.0f /mm", alpha);
-      ps.x_label = "alpha (1/mm)";
-      ps.y_label = "rms residual over the sample (um)";
-      ps.series.push_back({"candidates", a, rms, PlotColor(0)});
-      if (SavePlotPng(ps, (dir / "alpha.png").string()).ok()) report.artifacts["alpha_plot"] = "alpha.png";
     }
-    report.metrics["groove_alpha_per_mm"] = alpha;
+    // Without a groove at any candidate, each profile's reason at seed 002's 20 /mm.
     inspect::GrooveOptions fit = g.groove;
-    fit.alpha_per_mm = alpha;
+    fit.alpha_per_mm = chosen ? alpha : 20.0;
+    if (chosen) report.metrics["groove_alpha_per_mm"] = alpha;
     std::map<std::string, int> reasons;
+    fitted = 0;
+    width_sum = depth_sum = rms_sum = 0;
     for (ProfileRecord& rec : records) {
-      fit.expected_x_mm = rec.groove.x_mm;
+      fit.expected_x_mm = rec.expected_x_mm;
       rec.groove = inspect::FitGroove(rec.profile, fit);
       if (!rec.groove.ok) {
         // The reason's kind, without its numbers, counted.
@@ -541,16 +551,23 @@ Result<Report> RunInspectGroovesJob(const LoadedJob& job, const RunOptions& opti
         ++reasons[kind];
         continue;
       }
-      const Eigen::Vector3d q = ProfilePointInMachine(rec.axes, *mount, rec.groove.x_mm, rec.groove.z_mm);
+      const Eigen::Vector3d q =
+          ProfilePointInMachine(rec.axes, *mount, rec.groove.x_mm, rec.groove.z_mm);
       rec.centre_mm = frame.ToWorkpiece(q.head<2>());
       ++fitted;
       width_sum += rec.groove.width_mm;
       depth_sum += rec.groove.depth_mm;
       rms_sum += rec.groove.rms_mm;
     }
+    report.metrics["profiles"] = static_cast<double>(records.size());
     report.metrics["profiles_invalid"] = static_cast<double>(records.size() - fitted);
     for (const auto& [why, count] : reasons) {
       report.warnings.push_back(std::to_string(count) + " profiles without a groove: " + why);
+    }
+    if (fitted > 0) {
+      report.metrics["groove_width_um_mean"] = 1e3 * width_sum / fitted;
+      report.metrics["groove_depth_um_mean"] = 1e3 * depth_sum / fitted;
+      report.metrics["groove_fit_rms_um"] = 1e3 * rms_sum / fitted;
     }
     {
       std::ofstream csv(dir / "grooves.csv");
@@ -567,9 +584,26 @@ Result<Report> RunInspectGroovesJob(const LoadedJob& job, const RunOptions& opti
           csv << ",,,,," << why << '\n';
         }
       }
-      report.artifacts["grooves"] = "grooves.csv";
+      if (csv.good()) report.artifacts["grooves"] = "grooves.csv";
+    }
+    if (fitted == 0) {
+      return FailedPrecondition(
+          "no profile holds a groove (" + std::to_string(records.size()) + " profiles" +
+          (records.empty() ? std::string() : "; the first: " + records.front().groove.why) +
+          "): is anything engraved where the design says?");
     }
     return Status::Ok();
+  };
+  // A scan that ends early: the profiles taken fitted and saved, then the reason.
+  const auto stop = [&](const std::string& why) {
+    report.metrics["profiles"] = static_cast<double>(records.size());
+    std::string kept;
+    if (!records.empty()) {
+      const Status saved = fit_and_save();
+      kept = " (the " + std::to_string(records.size()) + " profiles taken are in grooves.csv" +
+             (saved.ok() ? "" : "; " + saved.ToString()) + ")";
+    }
+    return finish(false, why + kept);
   };
 
   // 4. Profiles across the grooves, square to the design's contours (seed 002: the scan path
@@ -584,34 +618,29 @@ Result<Report> RunInspectGroovesJob(const LoadedJob& job, const RunOptions& opti
     PhaseProgress progress(options, "profiles", "profiles", static_cast<double>(plan.size()));
     const hw::ProfilerInfo info = m.profiler->info();
     g.groove.z_resolution_mm = std::max(info.z_resolution_mm, 1e-5);
-    g.groove.z_min_mm = info.z_min_mm;
-    g.groove.z_max_mm = info.z_max_mm;
-    std::vector<double> s_along(contours.size(), 0.0);
-    std::vector<Eigen::Vector2d> last(contours.size(), Eigen::Vector2d::Constant(NAN));
+    if (info.z_max_mm > info.z_min_mm) {  // a sensor that states its measuring range
+      g.groove.z_min_mm = info.z_min_mm;
+      g.groove.z_max_mm = info.z_max_mm;
+    }
     for (size_t k = 0; k < plan.size(); ++k) {
-      if (cancelled()) return finish(false, "cancelled");
+      if (cancelled()) return stop("cancelled");
       const auto& [c, st] = plan[k];
       ProfileRecord rec;
       rec.contour = c;
-      if (last[c].allFinite()) s_along[c] += (st.point - last[c]).norm();
-      last[c] = st.point;
-      rec.s_mm = s_along[c];
+      rec.s_mm = st.s_mm;
       rec.design_mm = st.point;
       const Eigen::Vector2d at = frame.ToMachine(st.point);
       const Eigen::Vector2d across = frame.ToMachine(st.point + Eigen::Vector2d(-st.tangent.y(), st.tangent.x())) - at;
       const Eigen::Vector3d target(at.x(), at.y(), frame.top_z_mm);
       const Status moved = m.axis->MoveTo(AxesForSensorAt(*mount, target, across));
-      if (!moved.ok()) return finish(false, "profile " + std::to_string(k) + ": move: " + moved.ToString());
+      if (!moved.ok()) return stop("profile " + std::to_string(k) + ": move: " + moved.ToString());
       auto axes = m.axis->Position();
-      if (!axes.ok()) return finish(false, "axis position: " + axes.status().ToString());
+      if (!axes.ok()) return stop("axis position: " + axes.status().ToString());
       rec.axes = *axes;
       auto shot = m.profiler->Grab();
       if (!shot.ok()) {
-        if (!records.empty()) (void)fit_and_save();
-        return finish(false, "profile " + std::to_string(k) + " of " + std::to_string(plan.size()) +
-                                 ": " + shot.status().ToString() + " (the " +
-                                 std::to_string(records.size()) +
-                                 " profiles taken are kept in the report)");
+        return stop("profile " + std::to_string(k) + " of " + std::to_string(plan.size()) + ": " +
+                    shot.status().ToString());
       }
       const double expected = SensorXOf(*axes, *mount, target);
       rec.profile.dx_mm = shot->x_spacing_mm;
@@ -625,23 +654,16 @@ Result<Report> RunInspectGroovesJob(const LoadedJob& job, const RunOptions& opti
                                                           shot->x_spacing_mm)) + 1);
       rec.profile.x_start_mm = shot->x_start_mm + first * shot->x_spacing_mm;
       if (end > first) rec.profile.z_mm.assign(shot->z_mm.begin() + first, shot->z_mm.begin() + end);
-      rec.groove.x_mm = expected;  // until fitted: where it was looked for
+      rec.expected_x_mm = expected;
       records.push_back(std::move(rec));
       progress.Update(static_cast<double>(k + 1));
     }
   }
-  report.metrics["profiles"] = static_cast<double>(records.size());
   {
     const Status fitted_all = fit_and_save();
     if (!fitted_all.ok()) return finish(false, fitted_all.ToString());
   }
 
-  if (fitted == 0) {
-    return finish(false, "no profile holds a groove: is anything engraved where the design says?");
-  }
-  report.metrics["groove_width_um_mean"] = 1e3 * width_sum / fitted;
-  report.metrics["groove_depth_um_mean"] = 1e3 * depth_sum / fitted;
-  report.metrics["groove_fit_rms_um"] = 1e3 * rms_sum / fitted;
 
   // 6. Contours (seed 002 section 2.2): the centres clustered, matched to the design's contours
   // by centroid, compared point by point.

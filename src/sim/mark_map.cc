@@ -52,16 +52,19 @@ void MarkMap::AddFilmCrater(double x, double y, double w, double ln_film, double
   const int64_t j0 = static_cast<int64_t>(std::floor((y - radius) / cell_mm_));
   const int64_t j1 = static_cast<int64_t>(std::ceil((y + radius) / cell_mm_));
   const double k = 2.0 / (w * w);
+  // Depths are stored as floats: the film's thickness compared as one too (0.3124 mm is no
+  // float; as a double a cell would stop just short of it and never reach the metal).
+  const float film = static_cast<float>(film_um);
   for (int64_t j = j0; j <= j1; ++j) {
     for (int64_t i = i0; i <= i1; ++i) {
       const double dx = i * cell_mm_ - x, dy = j * cell_mm_ - y;
       const double falloff = k * (dx * dx + dy * dy);
-      const double film = delta_film_um * (ln_film - falloff);
+      const double removed = delta_film_um * (ln_film - falloff);
       const double sub = delta_sub_um * (ln_sub - falloff);
-      if (film <= 0 && sub <= 0) continue;
+      if (removed <= 0 && sub <= 0) continue;
       float& d = CellRef(i, j);
-      if (d < film_um) {
-        if (film > 0) d = static_cast<float>(std::min<double>(d + film, film_um));
+      if (d < film) {
+        if (removed > 0) d = std::min(static_cast<float>(d + removed), film);
       } else if (sub > 0) {
         d += static_cast<float>(sub);
       }

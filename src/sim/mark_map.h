@@ -26,7 +26,9 @@ class MarkMap {
   // One pulse into a film over a substrate: the film loses delta_film ln(F / F_th) where the
   // fluence passes its threshold, never past its thickness `film_um`; where the film is gone,
   // the substrate loses delta_sub ln(F / F_th,sub) where the fluence passes its own threshold.
-  // ln_film, ln_sub: ln(F0 / F_th) at the pulse's peak fluence F0 (<= 0: nothing).
+  // ln_film, ln_sub: ln(F0 / F_th) at the pulse's peak fluence F0 (<= 0: nothing). A pulse that
+  // finishes the film spends nothing on the metal; the metal starts with the next pulse there
+  // (the film's last micrometres take the pulse's energy, a fraction of one pulse's depth).
   void AddFilmCrater(double x_mm, double y_mm, double w_mm, double ln_film, double delta_film_um,
                      double film_um, double ln_sub, double delta_sub_um);
   // True if anything is marked within r_mm of (x, y) (by whole tiles: may say true a tile

@@ -33,13 +33,14 @@ Status SimWorld::MoveGantry(const std::array<double, 4>& xyzc) {
   if (!g.present) return FailedPrecondition("the machine has no gantry");
   const char* names[3] = {"x", "y", "z"};
   for (int k = 0; k < 3; ++k) {
-    if (!(xyzc[k] >= g.travel_min_mm[k] && xyzc[k] <= g.travel_max_mm[k])) {
+    // The same thousandth of slack as hw::CheckTravel: a position read back and sent again.
+    if (!(xyzc[k] >= g.travel_min_mm[k] - 1e-3 && xyzc[k] <= g.travel_max_mm[k] + 1e-3)) {
       return OutOfRange(std::string("gantry ") + names[k] + " " + std::to_string(xyzc[k]) +
                         " mm is outside its travel [" + std::to_string(g.travel_min_mm[k]) +
                         ", " + std::to_string(g.travel_max_mm[k]) + "]");
     }
   }
-  if (!(std::abs(xyzc[3]) <= g.c_travel_deg)) {
+  if (!(std::abs(xyzc[3]) <= g.c_travel_deg + 1e-3)) {
     return OutOfRange("gantry c " + std::to_string(xyzc[3]) + " deg is outside its travel +-" +
                       std::to_string(g.c_travel_deg));
   }
@@ -58,6 +59,8 @@ Status SimWorld::MoveGantry(const std::array<double, 4>& xyzc) {
   return Status::Ok();
 }
 
+// The encoders read the commanded position: a servo holds its encoder on the command, and the
+// repeatability is where the tool really ends up, which no encoder on the screw sees.
 std::array<double, 4> SimWorld::gantry_position() const {
   std::lock_guard<std::recursive_mutex> lock(mutex_);
   return gantry_command_;
@@ -82,12 +85,18 @@ Eigen::Isometry3d SimWorld::TrueSensorInWorld() const {
 }
 
 double SimWorld::AblatedDepthMm(double x_mm, double y_mm) const {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
   return 1e-3 * marks_->DepthUm(x_mm, y_mm);
 }
 
 double SimWorld::TrueSurfaceZ(double x_mm, double y_mm) const {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  return SurfaceZ(x_mm, y_mm);
+}
+
+double SimWorld::SurfaceZ(double x_mm, double y_mm) const {
   const double part =
-      scene_->stage_z() + scene_->TrueHeightAt(x_mm, y_mm) - AblatedDepthMm(x_mm, y_mm);
+      scene_->stage_z() + scene_->TrueHeightAt(x_mm, y_mm) - 1e-3 * marks_->DepthUm(x_mm, y_mm);
   const CalibrationBlockOptions& b = options_.block;
   if (!b.present) return part;
   // The block in its own frame: u, v from its axis.
@@ -107,13 +116,16 @@ bool SimWorld::SurfaceBlocks(const Eigen::Vector3d& from, const Eigen::Vector3d&
   if (!(d.z() > 0)) return true;  // a light or a camera below the surface
   // Where the segment is clear for good: above the part's top near a wall, else a little
   // above the deepest groove around.
+  // Near a wall a segment may pass under: the part's, or the block's (taller) near the block.
   const CalibrationBlockOptions& b = options_.block;
   const double block_top = b.present ? b.plate_thickness_mm + b.height_mm : 0.0;
-  const double tallest = std::max(scene_->part_max_height(), block_top);
-  const double reach = (tallest + 1.0) * horizontal / d.z() + 1.0;
+  const double block_reach = (block_top + 1.0) * horizontal / d.z() + 1.0;
   const bool near_block =
       b.present && std::hypot(from.x() - b.position_mm[0], from.y() - b.position_mm[1]) <
-                       0.75 * b.plate_mm + reach;
+                       0.75 * b.plate_mm + block_reach;
+  const double tallest = near_block ? std::max(scene_->part_max_height(), block_top)
+                                    : scene_->part_max_height();
+  const double reach = (tallest + 1.0) * horizontal / d.z() + 1.0;
   const bool near_edge = near_block || scene_->DistanceToPartEdge(from.x(), from.y()) < reach;
   const bool near_marks = marks_->MarkedNear(from.x(), from.y(), 1.0);
   if (!near_edge && !near_marks) return false;  // a smooth, gently curved top hides nothing
@@ -127,7 +139,7 @@ bool SimWorld::SurfaceBlocks(const Eigen::Vector3d& from, const Eigen::Vector3d&
   for (double s = step; s <= 1.0; s += step) {
     const Eigen::Vector3d p = from + s * d;
     if (p.z() >= clear_z) return false;
-    if (p.z() < TrueSurfaceZ(p.x(), p.y()) - 1e-4) return true;
+    if (p.z() < SurfaceZ(p.x(), p.y()) - 1e-4) return true;
   }
   return false;
 }
@@ -155,7 +167,7 @@ Result<SimWorld::ProfileShot> SimWorld::GrabProfile() {
     // f(z) = (base + z axis).z - surface(xy), the line all but vertical.
     const auto f = [&](double z) {
       const Eigen::Vector3d p = base + z * axis;
-      return p.z() - TrueSurfaceZ(p.x(), p.y());
+      return p.z() - SurfaceZ(p.x(), p.y());
     };
     double z = o.z_max_mm;
     if (!(f(z) > 0)) continue;  // the surface above the range's top
@@ -168,7 +180,7 @@ Result<SimWorld::ProfileShot> SimWorld::GrabProfile() {
       }
       z -= fz / axis.z();
     }
-    if (!found || !(f(o.z_max_mm) > 0)) {
+    if (!found) {
       // A wall under the line: march down to the first crossing, then bisect.
       double hi = o.z_max_mm, lo = hi;
       for (lo = hi - 0.02; lo >= o.z_min_mm - 0.02; lo -= 0.02) {
@@ -201,8 +213,8 @@ Result<SimWorld::ProfileShot> SimWorld::GrabProfile() {
     const double e = 0.005;
     const Eigen::Vector3d normal =
         rough ? Eigen::Vector3d(
-                    -(TrueSurfaceZ(p.x() + e, p.y()) - TrueSurfaceZ(p.x() - e, p.y())) / (2 * e),
-                    -(TrueSurfaceZ(p.x(), p.y() + e) - TrueSurfaceZ(p.x(), p.y() - e)) / (2 * e),
+                    -(SurfaceZ(p.x() + e, p.y()) - SurfaceZ(p.x() - e, p.y())) / (2 * e),
+                    -(SurfaceZ(p.x(), p.y() + e) - SurfaceZ(p.x(), p.y() - e)) / (2 * e),
                     1.0)
                     .normalized()
               : Eigen::Vector3d::UnitZ();

@@ -258,5 +258,33 @@ TEST(Contours, AContourSeenOnlyAcrossTheLineGivesItsWholeOffset) {
   EXPECT_LT(e->local_max_mm, 0.01);
 }
 
+// A part of a contour (a gap of missing grooves longer than the clustering's tolerance splits
+// one): the bottom and right sides of an 80 x 40 rectangle, moved by (0.3, -0.2) mm. Their
+// normals fix the offset; the bending they cannot tell from it (each side's distance from the
+// centroid is one number), so the offset alone is fitted and said so, never zeros.
+TEST(Contours, APartOfAContourGivesItsOffsetAndSaysWhatIsLeft) {
+  const Points2 design = Rectangle({100, 50}, 80, 40, 0.5);
+  Points2 measured;
+  for (const Vector2d& p : Rectangle({100, 50}, 80, 40, 0.05)) {
+    const bool bottom = std::abs(p.y() - 30.0) < 1e-9, right = std::abs(p.x() - 140.0) < 1e-9;
+    if ((bottom && p.x() > 62 && p.x() < 138) || (right && p.y() > 32 && p.y() < 68)) {
+      measured.push_back(p + Vector2d(0.3, -0.2));
+    }
+  }
+  auto e = CompareContour(design, measured, /*closed=*/true);
+  ASSERT_TRUE(e.ok()) << e.status().ToString();
+  EXPECT_EQ(e->fitted, "offset");
+  EXPECT_NEAR(e->offset_mm.x(), -0.3, 1e-6);
+  EXPECT_NEAR(e->offset_mm.y(), 0.2, 1e-6);
+  // One side alone leaves the offset along it free: refused by name.
+  Points2 one_side;
+  for (const Vector2d& p : measured) {
+    if (p.y() < 31) one_side.push_back(p);
+  }
+  auto refused = CompareContour(design, one_side, /*closed=*/true);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.status().message().find("do not determine"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace insitu::inspect

@@ -176,6 +176,17 @@ TEST_F(InspectGrooves, BadInputFailsByNameAndKeepsWhatWasMeasured) {
   ASSERT_FALSE(blank.ok());
   EXPECT_NE(blank.status().message().find("no profile holds a groove"), std::string::npos)
       << blank.status().message();
+  // Every profile is in grooves.csv with its reason (the last field), none with a groove.
+  std::ifstream blank_csv(Dir() / "blank" / "grooves.csv");
+  int rows = 0, with_reason = 0;
+  std::string l;
+  std::getline(blank_csv, l);  // the header
+  while (std::getline(blank_csv, l)) {
+    ++rows;
+    with_reason += l.back() != ',';
+  }
+  EXPECT_EQ(rows, 287);  // the pocket's 93.1 mm and the circle's 50.3 mm, a profile each 0.5 mm
+  EXPECT_EQ(with_reason, rows);
 }
 
 }  // namespace

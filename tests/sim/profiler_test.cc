@@ -162,5 +162,19 @@ TEST(Profiler, TurnedByCTheLineCrossesAGrooveAlongX) {
   EXPECT_GE(groove, 8);
 }
 
+// A film as thick as the seed's measured grooves are deep (0.3124 mm, no float), over metal the
+// pulses do cut (threshold 0.5 J/cm^2, under the 1.30 at the film): two passes go through the
+// film and into the metal, where the ablation law goes on.
+TEST(Profiler, TheFilmIsCutThroughToAMetalThePulsesAblate) {
+  WorldOptions o = PanelCell();
+  o.part.maskant_thickness_mm = 0.3124;
+  o.part.ablation_threshold_j_per_cm2 = 0.5;
+  SimWorld w(o);
+  Engrave(&w, 5.0);
+  double deepest = 0.0;
+  for (double x = 4.5; x <= 5.5; x += 0.002) deepest = std::max(deepest, w.AblatedDepthMm(x, 0.0));
+  EXPECT_GT(deepest, 0.3124 + 0.001);
+}
+
 }  // namespace
 }  // namespace insitu::sim

@@ -14,6 +14,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <string>
 #include <vector>
 
 #include "insitu/core/status.h"
@@ -51,6 +52,9 @@ struct ContourError {
   // symmetric, trace-free strain: one axis longer, the one across it shorter; its magnitude).
   double scale_pct = 0.0;
   double stretch_pct = 0.0;
+  // What the measured points determined: "offset, scale, stretch", or less for a part of a
+  // contour (the rest reported 0, left in the local error).
+  std::string fitted;
   std::vector<int> matched;      // per design point: the measured point matched (eq. 22)
   std::vector<double> local_mm;  // per design point: |P_i - Q'_j|
   // With the scale taken out too: the matched point's distance to the scaled design line

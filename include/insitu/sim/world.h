@@ -254,6 +254,8 @@ class SimWorld {
   double block_cos_ = 1.0, block_sin_ = 0.0;  // the calibration block's rotation
   uint64_t profile_counter_ = 0;
   std::mt19937_64 profiler_rng_;
+  // TrueSurfaceZ without the lock (the profile's hot loop holds it already).
+  double SurfaceZ(double x_mm, double y_mm) const;
   // Whether the segment from `from` (on the surface) to `to` passes under the surface.
   bool SurfaceBlocks(const Eigen::Vector3d& from, const Eigen::Vector3d& to) const;
   FrameTruth truth_;

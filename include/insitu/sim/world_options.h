@@ -284,7 +284,7 @@ struct ProfilerOptions {
   double z_max_mm = 10.0;
   double emitter_height_mm = 140.0;   // fan source above the reference point
   double triangulation_deg = 25.0;
-  double z_resolution_mm = 0.0005;    // one count of the 16-bit range output over +-10 mm
+  double z_resolution_mm = 0.0005;    // one count of the range output (+-10 mm in 40,000)
   double noise_um = 1.5;              // speckle: 1 sigma of one point's range
   double min_signal = 0.02;           // albedo x cos(incidence) under which no line is seen
   double spike_rate = 2e-4;           // points read off a second reflection (per point)
