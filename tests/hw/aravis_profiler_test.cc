@@ -21,6 +21,11 @@ namespace {
 
 // The fake camera serves the address of a local interface, one device per address: these tests
 // use 127.0.0.1 and run one at a time (ctest RESOURCE_LOCK gige_loopback).
+constexpr char kAddress[] = "127.0.0.1";
+
+// A range in Coord3D_C16 is rounded to the nearest count of the source's 1 um: at most half a
+// count off, plus the float the value is returned in (half an ulp at 10 mm: 4.8e-7 mm).
+constexpr double kC16TolMm = 0.5 * 0.001 + 1e-6;
 
 // A V-groove under a line profiler, the groove moving along the line from profile to profile,
 // with a counting encoder: the bottom of the groove is occluded (NaN) and a few points drop out.
@@ -118,17 +123,31 @@ void ExpectSourcesProfile(const GrooveSource& source, const RangeProfile& got, d
   EXPECT_GT(nan, 10);  // the groove's bottom and the dropouts came through as NaN
 }
 
+// A source served on kAddress and a profiler opened on it. The profiler goes first, while its
+// sensor still answers: closing one whose sensor is gone waits out GVCP timeouts.
+struct Served {
+  std::unique_ptr<SimulatedGigEProfiler> served;
+  std::unique_ptr<Profiler> profiler;
+};
+
+// Serves `source` on kAddress and opens it with `o` (its device set to kAddress).
+Result<Served> ServeAndOpen(std::shared_ptr<GrooveSource> source, ProfilerOptions o = {}) {
+  auto served = SimulatedGigEProfiler::Start(std::move(source), kAddress, "SIM-P01");
+  if (!served.ok()) return served.status();
+  o.device = kAddress;
+  auto profiler = OpenProfiler(o);
+  if (!profiler.ok()) return profiler.status();
+  return Served{std::move(*served), std::move(*profiler)};
+}
+
 TEST(AravisProfiler, ProfilesOverGigEAreTheSourcesOwn) {
   auto source = std::make_shared<GrooveSource>();
-  auto served = SimulatedGigEProfiler::Start(source, "127.0.0.1", "SIM-P01");
-  ASSERT_TRUE(served.ok()) << served.status().ToString();
-  ProfilerOptions o;
-  o.device = "127.0.0.1";
-  auto profiler = OpenProfiler(o);
-  ASSERT_TRUE(profiler.ok()) << profiler.status().ToString();
+  auto link = ServeAndOpen(source);
+  ASSERT_TRUE(link.ok()) << link.status().ToString();
+  Profiler& profiler = *link->profiler;
 
   // The geometry is what the device's features say, which the simulator took from the source.
-  const ProfilerInfo info = (*profiler)->info();
+  const ProfilerInfo info = profiler.info();
   const ProfilerInfo truth = GrooveSource::Info();
   EXPECT_EQ(info.model, "GrooveSim-640");
   EXPECT_EQ(info.serial, "SIM-P01");
@@ -139,25 +158,22 @@ TEST(AravisProfiler, ProfilesOverGigEAreTheSourcesOwn) {
   EXPECT_DOUBLE_EQ(info.z_max_mm, truth.z_max_mm);
   // 20 mm at 1 um is 20000 counts, within the 65535 of Coord3D_C16: the source's resolution.
   EXPECT_DOUBLE_EQ(info.z_resolution_mm, 0.001);
-  EXPECT_DOUBLE_EQ((*served)->z_scale_mm(), 0.001);
+  EXPECT_DOUBLE_EQ(link->served->z_scale_mm(), 0.001);
   EXPECT_DOUBLE_EQ(info.max_rate_hz, truth.max_rate_hz);
 
   // The exposure goes over GVCP to the source; outside ExposureTime's bounds it is refused.
-  ASSERT_TRUE((*profiler)->SetExposure(250.0).ok());
-  EXPECT_EQ((*profiler)->SetExposure(5e6).code(), StatusCode::kOutOfRange);
+  ASSERT_TRUE(profiler.SetExposure(250.0).ok());
+  EXPECT_EQ(profiler.SetExposure(5e6).code(), StatusCode::kOutOfRange);
 
-  // A range is rounded to the nearest count of 1 um: at most half a count off, plus the float
-  // the value is returned in (half an ulp at 10 mm: 4.8e-7 mm).
-  const double tol_mm = 0.5 * 0.001 + 1e-6;
   // Aravis's fake camera starts its 16-bit frame counter at 65400: 140 profiles cross its wrap,
   // and the sequence must count on by one.
   uint64_t last_sequence = 0;
   double last_timestamp_s = 0.0;
   for (int k = 0; k < 140; ++k) {
-    auto p = (*profiler)->Grab();
+    auto p = profiler.Grab();
     ASSERT_TRUE(p.ok()) << "profile " << k << ": " << p.status().ToString();
     EXPECT_EQ(p->encoder, GrooveSource::Encoder(k));
-    ExpectSourcesProfile(*source, *p, tol_mm);
+    ExpectSourcesProfile(*source, *p, kC16TolMm);
     if (k > 0) {
       EXPECT_EQ(p->sequence, last_sequence + 1) << "profile " << k;
       EXPECT_GT(p->timestamp_s, last_timestamp_s);
@@ -166,25 +182,23 @@ TEST(AravisProfiler, ProfilesOverGigEAreTheSourcesOwn) {
     last_timestamp_s = p->timestamp_s;
   }
   EXPECT_EQ(source->exposure_us(), 250.0);
-  EXPECT_EQ((*served)->profiles_sent(), 140);
+  EXPECT_EQ(link->served->profiles_sent(), 140);
 }
 
 TEST(AravisProfiler, FloatRangesComeBackToFloatPrecision) {
   auto source = std::make_shared<GrooveSource>();
-  auto served = SimulatedGigEProfiler::Start(source, "127.0.0.1", "SIM-P01");
-  ASSERT_TRUE(served.ok()) << served.status().ToString();
   ProfilerOptions o;
-  o.device = "127.0.0.1";
   o.pixel_format = "Coord3D_C32f";
-  auto profiler = OpenProfiler(o);
-  ASSERT_TRUE(profiler.ok()) << profiler.status().ToString();
+  auto link = ServeAndOpen(source, o);
+  ASSERT_TRUE(link.ok()) << link.status().ToString();
+  Profiler& profiler = *link->profiler;
   // The transmitted value is (z - z_min) / 1 um, a float up to 20000: its step there is 2^-9
   // counts, 1.95e-6 mm at the 1 um scale, which info() reports as one count of the output.
-  EXPECT_NEAR((*profiler)->info().z_resolution_mm, 0.001 * std::ldexp(1.0, -9), 1e-15);
+  EXPECT_NEAR(profiler.info().z_resolution_mm, 0.001 * std::ldexp(1.0, -9), 1e-15);
   // Half that step for the float sent, half an ulp at 10 mm (4.8e-7) for the float returned.
   const double tol_mm = 0.5 * 0.001 * std::ldexp(1.0, -9) + 4.8e-7 + 1e-8;
   for (int k = 0; k < 3; ++k) {
-    auto p = (*profiler)->Grab();
+    auto p = profiler.Grab();
     ASSERT_TRUE(p.ok()) << p.status().ToString();
     EXPECT_EQ(p->encoder, GrooveSource::Encoder(k));
     ExpectSourcesProfile(*source, *p, tol_mm);
@@ -193,30 +207,28 @@ TEST(AravisProfiler, FloatRangesComeBackToFloatPrecision) {
 
 TEST(AravisProfiler, ALossyLinkIsAnErrorNeverAWrongProfile) {
   auto source = std::make_shared<GrooveSource>();
-  auto served = SimulatedGigEProfiler::Start(source, "127.0.0.1", "SIM-P01");
-  ASSERT_TRUE(served.ok()) << served.status().ToString();
   ProfilerOptions o;
-  o.device = "127.0.0.1";
   // 1280 bytes of profile in packets of 576: leader, three data packets, trailer. With a quarter
   // of the packets lost, a profile comes whole with probability 0.75^5 = 0.24.
   o.packet_size = 576;
-  auto profiler = OpenProfiler(o);
-  ASSERT_TRUE(profiler.ok()) << profiler.status().ToString();
-  auto first = (*profiler)->Grab();
+  auto link = ServeAndOpen(source, o);
+  ASSERT_TRUE(link.ok()) << link.status().ToString();
+  Profiler& profiler = *link->profiler;
+  auto first = profiler.Grab();
   ASSERT_TRUE(first.ok()) << first.status().ToString();
 
-  (*served)->SetLostPacketRatio(0.25);
+  link->served->SetLostPacketRatio(0.25);
   int errors = 0;
   RangeProfile last = *first;
   const auto t0 = std::chrono::steady_clock::now();
   for (int k = 0; k < 16; ++k) {
-    auto p = (*profiler)->Grab();
+    auto p = profiler.Grab();
     if (!p.ok()) {
       EXPECT_EQ(p.status().code(), StatusCode::kDeviceError) << p.status().ToString();
       ++errors;
       continue;
     }
-    ExpectSourcesProfile(*source, *p, 0.5 * 0.001 + 1e-6);  // whole: the source's, as above
+    ExpectSourcesProfile(*source, *p, kC16TolMm);  // whole: the source's
     // Each grab is one frame of the sensor and one count step of 37: the sequence counts the
     // frames lost in between.
     EXPECT_EQ(p->sequence - last.sequence, static_cast<uint64_t>((p->encoder - last.encoder) / 37));
@@ -226,25 +238,21 @@ TEST(AravisProfiler, ALossyLinkIsAnErrorNeverAWrongProfile) {
   EXPECT_GT(errors, 0);
   EXPECT_LT(Seconds(t0), 16 * 1.2);  // each bounded by the frame timeout (1 s), no hang
 
-  (*served)->SetLostPacketRatio(0.0);
-  auto next = (*profiler)->Grab();
+  link->served->SetLostPacketRatio(0.0);
+  auto next = profiler.Grab();
   ASSERT_TRUE(next.ok()) << next.status().ToString();  // the link is good again
-  ExpectSourcesProfile(*source, *next, 0.5 * 0.001 + 1e-6);
+  ExpectSourcesProfile(*source, *next, kC16TolMm);
 }
 
 TEST(AravisProfiler, ASensorThatGoesAwayIsAnErrorAndComesBack) {
   auto source = std::make_shared<GrooveSource>();
-  auto served = SimulatedGigEProfiler::Start(source, "127.0.0.1", "SIM-P01");
-  ASSERT_TRUE(served.ok()) << served.status().ToString();
-  ProfilerOptions o;
-  o.device = "127.0.0.1";
-  auto profiler = OpenProfiler(o);
-  ASSERT_TRUE(profiler.ok()) << profiler.status().ToString();
-  ASSERT_TRUE((*profiler)->Grab().ok());
+  auto link = ServeAndOpen(source);
+  ASSERT_TRUE(link.ok()) << link.status().ToString();
+  ASSERT_TRUE(link->profiler->Grab().ok());
 
-  served->reset();
+  link->served.reset();
   auto t0 = std::chrono::steady_clock::now();
-  const auto gone = (*profiler)->Grab();
+  const auto gone = link->profiler->Grab();
   ASSERT_FALSE(gone.ok());
   EXPECT_EQ(gone.status().code(), StatusCode::kDeviceError);
   EXPECT_NE(gone.status().message().find("GigE profiler at 127.0.0.1"), std::string::npos)
@@ -253,21 +261,21 @@ TEST(AravisProfiler, ASensorThatGoesAwayIsAnErrorAndComesBack) {
   // connection is released aside.
   EXPECT_LT(Seconds(t0), 8.0);
 
-  auto back = SimulatedGigEProfiler::Start(source, "127.0.0.1", "SIM-P01");
+  auto back = SimulatedGigEProfiler::Start(source, kAddress, "SIM-P01");
   ASSERT_TRUE(back.ok()) << back.status().ToString();
-  auto again = (*profiler)->Grab();
+  auto again = link->profiler->Grab();
   ASSERT_TRUE(again.ok()) << again.status().ToString();
-  ExpectSourcesProfile(*source, *again, 0.5 * 0.001 + 1e-6);
+  ExpectSourcesProfile(*source, *again, kC16TolMm);
   // Closed while its sensor answers: closing one that is gone waits out GVCP timeouts.
   t0 = std::chrono::steady_clock::now();
-  profiler->reset();
+  link->profiler.reset();
   EXPECT_LT(Seconds(t0), 8.0);  // the lost connection's release (done aside) is joined here
 }
 
 TEST(AravisProfiler, BadOptionsAndAbsentSensorsAreClearErrors) {
   const auto bad = [](auto change) {
     ProfilerOptions o;
-    o.device = "127.0.0.1";
+    o.device = kAddress;
     change(o);
     return o.Validate();
   };
@@ -288,7 +296,7 @@ TEST(AravisProfiler, BadOptionsAndAbsentSensorsAreClearErrors) {
   EXPECT_EQ(OpenProfiler(invalid).status().code(), StatusCode::kInvalidArgument);
 
   ProfilerOptions o;
-  o.device = "127.0.0.1";  // nothing serves it now
+  o.device = kAddress;  // nothing serves it now
   auto t0 = std::chrono::steady_clock::now();
   const auto none = OpenProfiler(o);
   EXPECT_EQ(none.status().code(), StatusCode::kNotFound);
@@ -299,15 +307,14 @@ TEST(AravisProfiler, BadOptionsAndAbsentSensorsAreClearErrors) {
   class Empty : public GrooveSource {
     ProfilerInfo info() const override { return ProfilerInfo(); }
   };
-  EXPECT_EQ(
-      SimulatedGigEProfiler::Start(std::make_shared<Empty>(), "127.0.0.1", "A").status().code(),
-      StatusCode::kInvalidArgument);
-  auto source = std::make_shared<GrooveSource>();
-  EXPECT_EQ(SimulatedGigEProfiler::Start(source, "127.0.0.1", "SERIAL-OF-16-CHR").status().code(),
+  EXPECT_EQ(SimulatedGigEProfiler::Start(std::make_shared<Empty>(), kAddress, "A").status().code(),
             StatusCode::kInvalidArgument);
-  auto served = SimulatedGigEProfiler::Start(source, "127.0.0.1", "SIM-P01");
+  auto source = std::make_shared<GrooveSource>();
+  EXPECT_EQ(SimulatedGigEProfiler::Start(source, kAddress, "SERIAL-OF-16-CHR").status().code(),
+            StatusCode::kInvalidArgument);
+  auto served = SimulatedGigEProfiler::Start(source, kAddress, "SIM-P01");
   ASSERT_TRUE(served.ok()) << served.status().ToString();
-  EXPECT_EQ(SimulatedGigEProfiler::Start(source, "127.0.0.1", "B").status().code(),
+  EXPECT_EQ(SimulatedGigEProfiler::Start(source, kAddress, "B").status().code(),
             StatusCode::kDeviceError);
 
   // A hardware trigger that never comes: an error of its own, within the timeout.
@@ -328,7 +335,7 @@ TEST(AravisProfiler, BadOptionsAndAbsentSensorsAreClearErrors) {
   sim::WorldOptions w;
   w.camera.width_px = 64;
   w.camera.height_px = 48;
-  auto camera = SimulatedGigECamera::Start(std::make_shared<sim::SimWorld>(w), "127.0.0.1", "C");
+  auto camera = SimulatedGigECamera::Start(std::make_shared<sim::SimWorld>(w), kAddress, "C");
   ASSERT_TRUE(camera.ok()) << camera.status().ToString();
   o.trigger = "software";
   const auto not_profiler = OpenProfiler(o);

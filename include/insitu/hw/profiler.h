@@ -23,8 +23,8 @@ struct ProfilerInfo {
   int points = 0;              // per profile
   double x_start_mm = 0.0;     // X of point 0 in the sensor frame
   double x_spacing_mm = 0.0;   // between points along the line
-  double z_min_mm = 0.0;       // measuring range in the sensor frame
-  double z_max_mm = 0.0;
+  double z_min_mm = 0.0;       // measuring range in the sensor frame; equal when the sensor
+  double z_max_mm = 0.0;       // does not state it (a float range output without axis limits)
   double z_resolution_mm = 0.0;  // one count of the range output
   double max_rate_hz = 0.0;      // profiles per second at the current exposure
 };

@@ -15,7 +15,6 @@
 //   (sim_gige_profiler.cc says why); a real sensor that sends chunks never takes that path.
 // - Frames left in the stream's queue before a trigger belong to earlier grabs (a frame that
 //   came after its grab timed out): they are dropped, so a grab returns its own frame.
-#include <arpa/inet.h>
 #include <arv.h>
 
 #include <algorithm>
@@ -24,108 +23,14 @@
 #include <initializer_list>
 #include <limits>
 #include <string>
-#include <thread>
-#include <vector>
 
+#include "hw/aravis/gige_common.h"
 #include "insitu/core/log.h"
 #include "insitu/hw/aravis_profiler.h"
 
 namespace insitu::hw::aravis {
 
-Status ProfilerOptions::Validate() const {
-  if (pixel_format != "Coord3D_C16" && pixel_format != "Coord3D_C32f") {
-    return InvalidArgument("pixel_format must be Coord3D_C16 or Coord3D_C32f");
-  }
-  if (trigger != "software" && trigger != "Line0" && trigger != "Line1" && trigger != "Line2" &&
-      trigger != "Line3") {
-    return InvalidArgument("trigger must be software or Line0..Line3");
-  }
-  if (packet_size < 576 || packet_size > 16000) {
-    return InvalidArgument("packet_size must be in 576..16000 bytes");
-  }
-  if (buffers < 2 || buffers > 64) return InvalidArgument("buffers must be in 2..64");
-  if (!(frame_timeout_ms > 0)) return InvalidArgument("frame_timeout_ms must be > 0");
-  if (socket_buffer_bytes < 65536) return InvalidArgument("socket_buffer_bytes must be >= 65536");
-  return Status::Ok();
-}
-
 namespace {
-
-// Takes a GError's message and clears it.
-std::string Take(GError** error) {
-  std::string m = (*error != nullptr && (*error)->message != nullptr) ? (*error)->message : "?";
-  g_clear_error(error);
-  return m;
-}
-
-const char* StatusName(ArvBufferStatus s) {
-  switch (s) {
-    case ARV_BUFFER_STATUS_SUCCESS:
-      return "complete";
-    case ARV_BUFFER_STATUS_CLEARED:
-      return "cleared";
-    case ARV_BUFFER_STATUS_TIMEOUT:
-      return "timed out waiting for its packets (packets lost)";
-    case ARV_BUFFER_STATUS_MISSING_PACKETS:
-      return "missing packets";
-    case ARV_BUFFER_STATUS_WRONG_PACKET_ID:
-      return "wrong packet id";
-    case ARV_BUFFER_STATUS_SIZE_MISMATCH:
-      return "payload size mismatch";
-    case ARV_BUFFER_STATUS_FILLING:
-      return "still filling";
-    case ARV_BUFFER_STATUS_ABORTED:
-      return "aborted";
-    default:
-      return "unknown status";
-  }
-}
-
-// The address of the device the options name. Errors: not_found, invalid_argument.
-Result<std::string> FindDevice(const std::string& device) {
-  in_addr ip{};
-  if (inet_pton(AF_INET, device.c_str(), &ip) == 1) return device;
-  arv_update_device_list();
-  const unsigned n = arv_get_n_devices();
-  std::vector<std::string> seen;
-  std::vector<unsigned> gige;
-  const auto text = [](const char* s) { return std::string(s != nullptr ? s : ""); };
-  for (unsigned i = 0; i < n; ++i) {
-    if (text(arv_get_device_protocol(i)) != "GigEVision") continue;
-    gige.push_back(i);
-    const std::string id = text(arv_get_device_id(i));
-    const std::string serial = text(arv_get_device_serial_nbr(i));
-    const std::string address = text(arv_get_device_address(i));
-    seen.push_back(id + " (serial " + serial + ", " + address + ")");
-    if (!device.empty() && (device == serial || device == id)) return address;
-  }
-  std::string list;
-  for (const std::string& s : seen) list += (list.empty() ? "" : ", ") + s;
-  if (device.empty()) {
-    if (gige.size() == 1) return text(arv_get_device_address(gige[0]));
-    if (gige.empty()) return NotFound("no GigE Vision device found");
-    return InvalidArgument("several GigE Vision devices (" + list +
-                           "): name the profiler by serial, user id or address");
-  }
-  // A user id is not in the discovery reply: ask each device.
-  for (unsigned i : gige) {
-    GError* error = nullptr;
-    ArvCamera* c = arv_camera_new(arv_get_device_address(i), &error);
-    if (c == nullptr) {
-      g_clear_error(&error);
-      continue;
-    }
-    std::string user;
-    if (arv_camera_is_feature_available(c, "DeviceUserID", &error)) {
-      user = text(arv_camera_get_string(c, "DeviceUserID", &error));
-    }
-    g_clear_error(&error);
-    g_object_unref(c);
-    if (user == device) return text(arv_get_device_address(i));
-  }
-  return NotFound("no GigE Vision device '" + device + "'" +
-                  (list.empty() ? std::string(" (none found)") : " (found: " + list + ")"));
-}
 
 // One Scan3d coordinate: a transmitted value v is v * scale + offset, in mm.
 struct Coordinate {
@@ -140,22 +45,14 @@ struct Coordinate {
 class AravisProfiler : public Profiler {
  public:
   explicit AravisProfiler(ProfilerOptions o) : options_(std::move(o)) {}
-  ~AravisProfiler() override {
-    Disconnect();
-    for (std::thread& t : teardown_) t.join();
-  }
+  ~AravisProfiler() override { Disconnect(); }
 
   // Errors: not_found (nothing answers), device_error (it answered, but: names the feature).
   Status Connect() {
-    INSITU_ASSIGN_OR_RETURN(address_, FindDevice(options_.device));
-    GError* error = nullptr;
-    camera_ = arv_camera_new(address_.c_str(), &error);
-    if (camera_ == nullptr) {
-      return Status(StatusCode::kNotFound,
-                    "GigE profiler at " + address_ + " does not answer: " + Take(&error));
-    }
+    INSITU_ASSIGN_OR_RETURN(address_, FindDevice(options_.device, "profiler"));
+    INSITU_RETURN_IF_ERROR(link_.Open(address_, "profiler"));
     Status s = Setup();
-    if (s.ok()) s = StartStream();
+    if (s.ok()) s = link_.StartStream(options_.buffers, options_.socket_buffer_bytes);
     if (!s.ok()) {
       Disconnect();
       return Status(s.code(), "GigE profiler at " + address_ + ": " + s.message());
@@ -169,7 +66,7 @@ class AravisProfiler : public Profiler {
     INSITU_RETURN_IF_ERROR(EnsureConnected());
     GError* error = nullptr;
     double lo = 0, hi = 0;
-    arv_camera_get_exposure_time_bounds(camera_, &lo, &hi, &error);
+    arv_camera_get_exposure_time_bounds(camera(), &lo, &hi, &error);
     if (error != nullptr) {
       return Status(StatusCode::kDeviceError,
                     "GigE profiler at " + address_ + ": exposure bounds: " + Take(&error));
@@ -179,7 +76,7 @@ class AravisProfiler : public Profiler {
                         " us is outside the profiler's [" + std::to_string(lo) + ", " +
                         std::to_string(hi) + "] us");
     }
-    arv_camera_set_exposure_time(camera_, exposure_us, &error);
+    arv_camera_set_exposure_time(camera(), exposure_us, &error);
     if (error != nullptr) return Lost("exposure: " + Take(&error));
     exposure_us_ = exposure_us;
     return Status::Ok();
@@ -188,16 +85,17 @@ class AravisProfiler : public Profiler {
  protected:
   Result<RangeProfile> GrabProfile() override {
     INSITU_RETURN_IF_ERROR(EnsureConnected());
-    while (ArvBuffer* old = arv_stream_try_pop_buffer(stream_))
-      arv_stream_push_buffer(stream_, old);
+    while (ArvBuffer* old = arv_stream_try_pop_buffer(stream()))
+      arv_stream_push_buffer(stream(), old);
     GError* error = nullptr;
     const bool hardware = options_.trigger != "software";
     if (!hardware) {
-      arv_camera_software_trigger(camera_, &error);
+      arv_camera_software_trigger(camera(), &error);
       if (error != nullptr) return Lost("trigger: " + Take(&error), /*reachable=*/false);
     }
     const double wait_ms = exposure_us_ * 1e-3 + options_.frame_timeout_ms;
-    ArvBuffer* buffer = arv_stream_timeout_pop_buffer(stream_, static_cast<guint64>(wait_ms * 1e3));
+    ArvBuffer* buffer =
+        arv_stream_timeout_pop_buffer(stream(), static_cast<guint64>(wait_ms * 1e3));
     if (buffer == nullptr && hardware) {
       // No pulse on the trigger input is not a lost sensor.
       return Status(StatusCode::kDeviceError,
@@ -209,7 +107,7 @@ class AravisProfiler : public Profiler {
     }
     const ArvBufferStatus status = arv_buffer_get_status(buffer);
     if (status != ARV_BUFFER_STATUS_SUCCESS) {
-      arv_stream_push_buffer(stream_, buffer);
+      arv_stream_push_buffer(stream(), buffer);
       return Status(StatusCode::kDeviceError, "GigE profiler at " + address_ + ": frame " +
                                                   StatusName(status) + " (profile dropped)");
     }
@@ -222,7 +120,7 @@ class AravisProfiler : public Profiler {
       if (error != nullptr)
         s = DeviceError("ChunkEncoderValue in the frame's chunks: " + Take(&error));
     }
-    arv_stream_push_buffer(stream_, buffer);
+    arv_stream_push_buffer(stream(), buffer);
     if (s.ok() && !chunked) s = ReadLatchedEncoder(frame_id, &p.encoder);
     if (!s.ok()) {
       return Status(StatusCode::kDeviceError, "GigE profiler at " + address_ + ": frame " +
@@ -233,33 +131,36 @@ class AravisProfiler : public Profiler {
   }
 
  private:
+  ArvCamera* camera() const { return link_.camera(); }
+  ArvStream* stream() const { return link_.stream(); }
+
   // Everything but the stream; the caller prefixes the address and disconnects on an error.
   Status Setup() {
     GError* error = nullptr;
     const auto fail = [&](const std::string& what) {
       return DeviceError(what + ": " + Take(&error));
     };
-    const char* model = arv_camera_get_model_name(camera_, &error);
+    const char* model = arv_camera_get_model_name(camera(), &error);
     if (error != nullptr) return fail("DeviceModelName");
-    const char* serial = arv_camera_get_device_serial_number(camera_, &error);
+    const char* serial = arv_camera_get_device_serial_number(camera(), &error);
     if (error != nullptr) return fail("DeviceSerialNumber");
     info_ = ProfilerInfo();
     info_.model = model != nullptr ? model : "";
     info_.serial = serial != nullptr ? serial : "";
 
     INSITU_RETURN_IF_ERROR(SelectRangeComponent());
-    arv_camera_set_string(camera_, "PixelFormat", options_.pixel_format.c_str(), &error);
+    arv_camera_set_string(camera(), "PixelFormat", options_.pixel_format.c_str(), &error);
     if (error != nullptr) return fail("PixelFormat " + options_.pixel_format);
     format_ = options_.pixel_format == "Coord3D_C16" ? ARV_PIXEL_FORMAT_COORD3D_C_16
                                                      : ARV_PIXEL_FORMAT_COORD3D_C_32F;
     // One profile per frame: Height is the number of profiles a frame carries.
-    const gint64 height = arv_camera_get_integer(camera_, "Height", &error);
+    const gint64 height = arv_camera_get_integer(camera(), "Height", &error);
     if (error != nullptr) return fail("Height");
     if (height != 1) {
-      arv_camera_set_integer(camera_, "Height", 1, &error);
+      arv_camera_set_integer(camera(), "Height", 1, &error);
       if (error != nullptr) return fail("Height 1 (one profile per frame)");
     }
-    const gint64 width = arv_camera_get_integer(camera_, "Width", &error);
+    const gint64 width = arv_camera_get_integer(camera(), "Width", &error);
     if (error != nullptr) return fail("Width");
     if (width < 1) return DeviceError("Width is " + std::to_string(width) + ": no points");
     info_.points = static_cast<int>(width);
@@ -280,22 +181,11 @@ class AravisProfiler : public Profiler {
     info_.x_spacing_mm = x_.scale;
     SetRange();
 
-    arv_camera_set_trigger(
-        camera_, options_.trigger == "software" ? "Software" : options_.trigger.c_str(), &error);
-    if (error != nullptr) return fail("trigger " + options_.trigger);
-    arv_camera_gv_set_packet_size(camera_, options_.packet_size, &error);
-    if (error != nullptr) return fail("packet size " + std::to_string(options_.packet_size));
-    if (exposure_us_ > 0) {
-      arv_camera_set_exposure_time(camera_, exposure_us_, &error);
-      if (error != nullptr) return fail("ExposureTime");
-    } else {
-      // Whatever the sensor was left at: the grab timeout includes it.
-      exposure_us_ = arv_camera_get_exposure_time(camera_, &error);
-      if (error != nullptr) return fail("ExposureTime");
-    }
-    if (arv_camera_is_feature_available(camera_, "AcquisitionFrameRate", &error)) {
+    INSITU_RETURN_IF_ERROR(
+        link_.SetAcquisition(options_.trigger, options_.packet_size, &exposure_us_));
+    if (arv_camera_is_feature_available(camera(), "AcquisitionFrameRate", &error)) {
       double lo = 0, hi = 0;
-      arv_camera_get_float_bounds(camera_, "AcquisitionFrameRate", &lo, &hi, &error);
+      arv_camera_get_float_bounds(camera(), "AcquisitionFrameRate", &lo, &hi, &error);
       if (error == nullptr) info_.max_rate_hz = hi;
     }
     g_clear_error(&error);  // the rate is information only
@@ -305,28 +195,28 @@ class AravisProfiler : public Profiler {
   // A multi-component sensor (range, intensity, ...): the range alone, so a frame is one image.
   Status SelectRangeComponent() {
     GError* error = nullptr;
-    if (!arv_camera_is_feature_available(camera_, "ComponentSelector", &error)) {
+    if (!arv_camera_is_feature_available(camera(), "ComponentSelector", &error)) {
       g_clear_error(&error);
       return Status::Ok();  // a single-component device: its image is the range
     }
     guint n = 0;
     const char** entries =
-        arv_camera_dup_available_enumerations_as_strings(camera_, "ComponentSelector", &n, &error);
+        arv_camera_dup_available_enumerations_as_strings(camera(), "ComponentSelector", &n, &error);
     if (error != nullptr) return DeviceError("ComponentSelector: " + Take(&error));
     bool has_range = false;
     for (guint i = 0; i < n && error == nullptr; ++i) {
       const bool range = std::strcmp(entries[i], "Range") == 0;
       has_range = has_range || range;
-      arv_camera_set_string(camera_, "ComponentSelector", entries[i], &error);
+      arv_camera_set_string(camera(), "ComponentSelector", entries[i], &error);
       if (error == nullptr &&
-          arv_camera_is_feature_available(camera_, "ComponentEnable", nullptr)) {
-        arv_camera_set_boolean(camera_, "ComponentEnable", range, &error);
+          arv_camera_is_feature_available(camera(), "ComponentEnable", nullptr)) {
+        arv_camera_set_boolean(camera(), "ComponentEnable", range, &error);
       }
     }
     g_free(entries);
     if (error != nullptr) return DeviceError("ComponentSelector/ComponentEnable: " + Take(&error));
     if (!has_range) return DeviceError("ComponentSelector has no Range component");
-    arv_camera_set_string(camera_, "ComponentSelector", "Range", &error);
+    arv_camera_set_string(camera(), "ComponentSelector", "Range", &error);
     if (error != nullptr) return DeviceError("ComponentSelector Range: " + Take(&error));
     return Status::Ok();
   }
@@ -335,11 +225,11 @@ class AravisProfiler : public Profiler {
   // `accepted`, the first tried first.
   Status RequireEntry(const char* feature, std::initializer_list<const char*> accepted) {
     GError* error = nullptr;
-    if (!arv_camera_is_feature_available(camera_, feature, &error)) {
+    if (!arv_camera_is_feature_available(camera(), feature, &error)) {
       g_clear_error(&error);
       return Status::Ok();
     }
-    const char* value = arv_camera_get_string(camera_, feature, &error);
+    const char* value = arv_camera_get_string(camera(), feature, &error);
     if (error != nullptr) return DeviceError(std::string(feature) + ": " + Take(&error));
     const std::string current = value != nullptr ? value : "";
     std::string names;
@@ -348,7 +238,7 @@ class AravisProfiler : public Profiler {
       names += (names.empty() ? "" : " or ") + std::string(a);
     }
     for (const char* a : accepted) {
-      arv_camera_set_string(camera_, feature, a, &error);
+      arv_camera_set_string(camera(), feature, a, &error);
       if (error == nullptr) return Status::Ok();
       g_clear_error(&error);
     }
@@ -358,30 +248,30 @@ class AravisProfiler : public Profiler {
   Status ReadCoordinate(const char* which, Coordinate* c) {
     GError* error = nullptr;
     const std::string name = std::string(" of ") + which;
-    arv_camera_set_string(camera_, "Scan3dCoordinateSelector", which, &error);
+    arv_camera_set_string(camera(), "Scan3dCoordinateSelector", which, &error);
     if (error != nullptr)
       return DeviceError(std::string("Scan3dCoordinateSelector ") + which + ": " + Take(&error));
-    c->scale = arv_camera_get_float(camera_, "Scan3dCoordinateScale", &error);
+    c->scale = arv_camera_get_float(camera(), "Scan3dCoordinateScale", &error);
     if (error != nullptr) return DeviceError("Scan3dCoordinateScale" + name + ": " + Take(&error));
-    c->offset = arv_camera_get_float(camera_, "Scan3dCoordinateOffset", &error);
+    c->offset = arv_camera_get_float(camera(), "Scan3dCoordinateOffset", &error);
     if (error != nullptr) return DeviceError("Scan3dCoordinateOffset" + name + ": " + Take(&error));
     c->has_invalid = false;
-    if (arv_camera_is_feature_available(camera_, "Scan3dInvalidDataFlag", nullptr)) {
-      c->has_invalid = arv_camera_get_boolean(camera_, "Scan3dInvalidDataFlag", &error);
+    if (arv_camera_is_feature_available(camera(), "Scan3dInvalidDataFlag", nullptr)) {
+      c->has_invalid = arv_camera_get_boolean(camera(), "Scan3dInvalidDataFlag", &error);
       if (error != nullptr)
         return DeviceError("Scan3dInvalidDataFlag" + name + ": " + Take(&error));
     }
     if (c->has_invalid) {
-      c->invalid = arv_camera_get_float(camera_, "Scan3dInvalidDataValue", &error);
+      c->invalid = arv_camera_get_float(camera(), "Scan3dInvalidDataValue", &error);
       if (error != nullptr) {
         return DeviceError("Scan3dInvalidDataValue" + name + ": " + Take(&error));
       }
     }
-    c->has_axis = arv_camera_is_feature_available(camera_, "Scan3dAxisMin", nullptr) &&
-                  arv_camera_is_feature_available(camera_, "Scan3dAxisMax", nullptr);
+    c->has_axis = arv_camera_is_feature_available(camera(), "Scan3dAxisMin", nullptr) &&
+                  arv_camera_is_feature_available(camera(), "Scan3dAxisMax", nullptr);
     if (c->has_axis) {
-      c->axis_min = arv_camera_get_float(camera_, "Scan3dAxisMin", &error);
-      if (error == nullptr) c->axis_max = arv_camera_get_float(camera_, "Scan3dAxisMax", &error);
+      c->axis_min = arv_camera_get_float(camera(), "Scan3dAxisMin", &error);
+      if (error == nullptr) c->axis_max = arv_camera_get_float(camera(), "Scan3dAxisMax", &error);
       if (error != nullptr) return DeviceError("Scan3dAxisMin/Max" + name + ": " + Take(&error));
     }
     return Status::Ok();
@@ -415,7 +305,7 @@ class AravisProfiler : public Profiler {
   // SFNC names the selector entry EncoderValue; some sensors name it after the chunk feature.
   Status EnableEncoderChunk() {
     GError* error = nullptr;
-    const bool chunks = arv_camera_are_chunks_available(camera_, &error);
+    const bool chunks = arv_camera_are_chunks_available(camera(), &error);
     g_clear_error(&error);
     if (!chunks) {
       return DeviceError(
@@ -424,7 +314,7 @@ class AravisProfiler : public Profiler {
     }
     const char* entry = nullptr;
     for (const char* e : {"EncoderValue", "ChunkEncoderValue"}) {
-      if (arv_camera_is_enumeration_entry_available(camera_, "ChunkSelector", e, nullptr)) {
+      if (arv_camera_is_enumeration_entry_available(camera(), "ChunkSelector", e, nullptr)) {
         entry = e;
         break;
       }
@@ -434,15 +324,15 @@ class AravisProfiler : public Profiler {
           "ChunkSelector has no EncoderValue: the encoder count cannot travel "
           "with the profile");
     }
-    arv_camera_set_chunk_mode(camera_, TRUE, &error);
+    arv_camera_set_chunk_mode(camera(), TRUE, &error);
     if (error != nullptr) return DeviceError("ChunkModeActive: " + Take(&error));
-    arv_camera_set_chunk_state(camera_, entry, TRUE, &error);
+    arv_camera_set_chunk_state(camera(), entry, TRUE, &error);
     if (error != nullptr) {
       return DeviceError(std::string("ChunkSelector ") + entry + ", ChunkEnable: " + Take(&error));
     }
-    has_chunk_frame_id_ = arv_camera_is_feature_available(camera_, "ChunkFrameID", nullptr);
+    has_chunk_frame_id_ = arv_camera_is_feature_available(camera(), "ChunkFrameID", nullptr);
     if (parser_ != nullptr) g_object_unref(parser_);
-    parser_ = arv_camera_create_chunk_parser(camera_);
+    parser_ = arv_camera_create_chunk_parser(camera());
     if (parser_ == nullptr) return DeviceError("no chunk parser for the device's GenICam file");
     return Status::Ok();
   }
@@ -457,7 +347,7 @@ class AravisProfiler : public Profiler {
     }
     GError* error = nullptr;
     if (has_chunk_frame_id_) {
-      const gint64 latched = arv_camera_get_integer(camera_, "ChunkFrameID", &error);
+      const gint64 latched = arv_camera_get_integer(camera(), "ChunkFrameID", &error);
       if (error != nullptr) {
         return DeviceError(
             "no chunk data in the frame, and ChunkFrameID cannot be read from "
@@ -470,7 +360,7 @@ class AravisProfiler : public Profiler {
                            std::to_string(latched) + "'s, not this frame's");
       }
     }
-    *encoder = arv_camera_get_integer(camera_, "ChunkEncoderValue", &error);
+    *encoder = arv_camera_get_integer(camera(), "ChunkEncoderValue", &error);
     if (error != nullptr) {
       return DeviceError(
           "no chunk data in the frame, and ChunkEncoderValue cannot be read from "
@@ -553,7 +443,7 @@ class AravisProfiler : public Profiler {
   }
 
   Status EnsureConnected() {
-    if (camera_ != nullptr) return Status::Ok();
+    if (camera() != nullptr) return Status::Ok();
     if (!options_.reconnect && lost_) {
       return Status(StatusCode::kDeviceError, "GigE profiler " + address_ + " was lost");
     }
@@ -573,30 +463,13 @@ class AravisProfiler : public Profiler {
     return Status::Ok();
   }
 
-  // `reachable`: the sensor still answers (stop its acquisition first). One that stopped
-  // answering costs a GVCP timeout per command, so none is sent but the control release Aravis
-  // makes when the camera object goes, and that (about 10 s) is done aside.
+  // `reachable`: the sensor still answers; Connection::Close says why it matters.
   void Disconnect(bool reachable = true) {
     if (parser_ != nullptr) {
       g_object_unref(parser_);
       parser_ = nullptr;
     }
-    if (!reachable) {
-      ArvStream* stream = stream_;
-      ArvCamera* camera = camera_;
-      stream_ = nullptr;
-      camera_ = nullptr;
-      teardown_.emplace_back([stream, camera] {
-        if (stream != nullptr) g_object_unref(stream);
-        if (camera != nullptr) g_object_unref(camera);
-      });
-      return;
-    }
-    StopStream();
-    if (camera_ != nullptr) {
-      g_object_unref(camera_);
-      camera_ = nullptr;
-    }
+    link_.Close(reachable);
   }
 
   // The link failed: report it, drop the connection; the next grab reconnects.
@@ -607,38 +480,9 @@ class AravisProfiler : public Profiler {
     return Status(StatusCode::kDeviceError, "GigE profiler at " + address_ + ": " + what);
   }
 
-  Status StartStream() {
-    GError* error = nullptr;
-    stream_ = arv_camera_create_stream(camera_, nullptr, nullptr, &error);
-    if (stream_ == nullptr) return DeviceError("stream: " + Take(&error));
-    if (ARV_IS_GV_STREAM(stream_)) {
-      g_object_set(stream_, "packet-resend", ARV_GV_STREAM_PACKET_RESEND_ALWAYS, "socket-buffer",
-                   ARV_GV_STREAM_SOCKET_BUFFER_FIXED, "socket-buffer-size",
-                   options_.socket_buffer_bytes, nullptr);
-    }
-    const guint payload = arv_camera_get_payload(camera_, &error);
-    if (error != nullptr) return DeviceError("PayloadSize: " + Take(&error));
-    for (int i = 0; i < options_.buffers; ++i) {
-      arv_stream_push_buffer(stream_, arv_buffer_new(payload, nullptr));
-    }
-    arv_camera_start_acquisition(camera_, &error);
-    if (error != nullptr) return DeviceError("AcquisitionStart: " + Take(&error));
-    return Status::Ok();
-  }
-
-  void StopStream() {
-    if (stream_ == nullptr) return;
-    GError* error = nullptr;
-    if (camera_ != nullptr) arv_camera_stop_acquisition(camera_, &error);
-    g_clear_error(&error);
-    g_object_unref(stream_);
-    stream_ = nullptr;
-  }
-
   ProfilerOptions options_;
   std::string address_;
-  ArvCamera* camera_ = nullptr;
-  ArvStream* stream_ = nullptr;
+  Connection link_;
   ArvChunkParser* parser_ = nullptr;
   ProfilerInfo info_;
   ArvPixelFormat format_ = ARV_PIXEL_FORMAT_COORD3D_C_16;
@@ -649,7 +493,6 @@ class AravisProfiler : public Profiler {
   bool have_frame_id_ = false;
   guint64 last_frame_id_ = 0;
   uint64_t sequence_ = 0;
-  std::vector<std::thread> teardown_;  // lost connections being released
 };
 
 }  // namespace

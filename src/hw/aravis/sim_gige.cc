@@ -1,16 +1,12 @@
 // Aravis's fake GigE Vision camera with the simulator behind it: each frame the fake camera
 // sends is rendered by the world at the exposure, gain and binning the client set over GVCP.
-#include <arpa/inet.h>
 #include <arv.h>
-#include <netinet/in.h>
-#include <sys/socket.h>
-#include <unistd.h>
 
 #include <atomic>
-#include <cerrno>
 #include <cstring>
 #include <mutex>
 
+#include "hw/aravis/gige_common.h"
 #include "insitu/core/log.h"
 #include "insitu/hw/aravis.h"
 #include "insitu/sim/world.h"
@@ -77,26 +73,7 @@ Result<std::unique_ptr<SimulatedGigECamera>> SimulatedGigECamera::Start(
     return InvalidArgument(
         "the simulated GigE camera sends Mono8: the world's camera must be 8-bit");
   }
-  {
-    // Aravis's fake camera reports running even when its GVCP port is taken (only one camera
-    // per address): check the port first.
-    sockaddr_in a{};
-    a.sin_family = AF_INET;
-    a.sin_port = htons(3956);
-    if (inet_pton(AF_INET, address.c_str(), &a.sin_addr) != 1) {
-      return InvalidArgument("'" + address + "' is not an IPv4 address");
-    }
-    const int fd = socket(AF_INET, SOCK_DGRAM, 0);
-    const int rc = fd < 0 ? -1 : bind(fd, reinterpret_cast<const sockaddr*>(&a), sizeof a);
-    const int err = errno;
-    if (fd >= 0) close(fd);
-    if (rc != 0) {
-      return Status(StatusCode::kDeviceError,
-                    "cannot serve a GigE Vision camera on " + address +
-                        ":3956: " + std::strerror(err) +
-                        (err == EADDRINUSE ? " (another camera serves that address)" : ""));
-    }
-  }
+  INSITU_RETURN_IF_ERROR(CheckGvcpPortFree(address, "camera"));
   auto impl = std::make_unique<Impl>();
   impl->world = std::move(world);
   impl->address = address;

@@ -1,5 +1,5 @@
 // Any hw::Profiler served as a GenICam 3D line profiler: Aravis's fake GigE Vision camera with
-// a profiler's register map (kProfilerXml below), each triggered frame filled with one profile
+// a profiler's register map (ProfilerXml below), each triggered frame filled with one profile
 // of the source.
 //
 // How the fake camera is bent to a profiler, and where it cannot be (Aravis 0.8.26):
@@ -20,20 +20,21 @@
 //   frame's). A real sensor's chunks go through ArvChunkParser.
 // - A profile that cannot be made is dropped: the fill cannot stop the frame, so it sets the
 //   fake camera's packet loss to 1 for that frame (restored on the next fill).
-#include <arpa/inet.h>
 #include <arv.h>
-#include <netinet/in.h>
 #include <sys/mman.h>
-#include <sys/socket.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <initializer_list>
 #include <string>
+#include <utility>
 
+#include "hw/aravis/gige_common.h"
 #include "insitu/core/log.h"
 #include "insitu/hw/aravis_profiler.h"
 
@@ -54,7 +55,7 @@ constexpr guint32 kHeight = 0x104;
 constexpr guint32 kPixelFormat = 0x128;
 constexpr guint32 kExposureUs = 0x120;
 
-// Ours, as kProfilerXml declares them. Per-coordinate registers are indexed by
+// Ours, as ProfilerXml declares them. Per-coordinate registers are indexed by
 // Scan3dCoordinateSelector (CoordinateA 0, CoordinateC 2).
 constexpr guint32 kCoordinateScale = 0xA010;    // f64 x 3
 constexpr guint32 kCoordinateOffset = 0xA030;   // f64 x 3
@@ -71,10 +72,11 @@ constexpr int kA = 0, kC = 2;
 constexpr guint32 kInvalidCount = 65535;  // Coord3D_C16; counts 0..65534 are ranges
 constexpr int kMaxPoints = 16384;
 
-// SFNC names and PFNC values (Coord3D_C16 0x011000B8 = 17825976, Coord3D_C32f 0x012000BF =
-// 18874559). Chunk, Scan3d and component features follow SFNC 2.x; Scan3dOutputMode RectifiedC:
-// the range of point i is at X = offset_A + i scale_A.
-constexpr char kProfilerXml[] = R"XML(<?xml version="1.0" encoding="utf-8"?>
+// The register map as GenICam XML (GenApi schema 1.1), built from the addresses above (those
+// of registers nothing here writes stand where they are declared): SFNC names and PFNC values.
+// Chunk, Scan3d and component features follow SFNC 2.x; Scan3dOutputMode RectifiedC: the range of
+// point i is at X = offset_A + i scale_A.
+constexpr char kXmlHead[] = R"XML(<?xml version="1.0" encoding="utf-8"?>
 <RegisterDescription ModelName="InsituSimulatedProfiler" VendorName="insitu"
     StandardNameSpace="GEV" SchemaMajorVersion="1" SchemaMinorVersion="1" SchemaSubMinorVersion="0"
     MajorVersion="1" MinorVersion="0" SubMinorVersion="0" ToolTip="insitu simulated line profiler"
@@ -83,300 +85,216 @@ constexpr char kProfilerXml[] = R"XML(<?xml version="1.0" encoding="utf-8"?>
     xmlns="http://www.genicam.org/GenApi/Version_1_1"
     xmlns:xsi="http://www.w3.org/2001/XMLSchema-instance"
     xsi:schemaLocation="http://www.genicam.org/GenApi/Version_1_1 GenApiSchema_Version_1_1.xsd">
+)XML";
 
-  <Category Name="Root" NameSpace="Standard">
-    <pFeature>DeviceControl</pFeature>
-    <pFeature>ImageFormatControl</pFeature>
-    <pFeature>AcquisitionControl</pFeature>
-    <pFeature>Scan3dControl</pFeature>
-    <pFeature>ChunkDataControl</pFeature>
-    <pFeature>TransportLayerControl</pFeature>
-  </Category>
-
-  <Category Name="DeviceControl" NameSpace="Standard">
-    <pFeature>DeviceVendorName</pFeature>
-    <pFeature>DeviceModelName</pFeature>
-    <pFeature>DeviceSerialNumber</pFeature>
-    <pFeature>DeviceUserID</pFeature>
-  </Category>
-  <StringReg Name="DeviceVendorName" NameSpace="Standard">
-    <Address>0x48</Address><Length>32</Length><AccessMode>RO</AccessMode><pPort>Device</pPort>
-  </StringReg>
-  <StringReg Name="DeviceModelName" NameSpace="Standard">
-    <Address>0x68</Address><Length>32</Length><AccessMode>RO</AccessMode><pPort>Device</pPort>
-  </StringReg>
-  <StringReg Name="DeviceSerialNumber" NameSpace="Standard">
-    <Address>0xD8</Address><Length>16</Length><AccessMode>RO</AccessMode><pPort>Device</pPort>
-  </StringReg>
-  <StringReg Name="DeviceUserID" NameSpace="Standard">
-    <Address>0xE8</Address><Length>16</Length><AccessMode>RW</AccessMode><pPort>Device</pPort>
-  </StringReg>
-
-  <Category Name="ImageFormatControl" NameSpace="Standard">
-    <pFeature>ComponentSelector</pFeature>
-    <pFeature>ComponentEnable</pFeature>
-    <pFeature>SensorWidth</pFeature>
-    <pFeature>SensorHeight</pFeature>
-    <pFeature>Width</pFeature>
-    <pFeature>Height</pFeature>
-    <pFeature>OffsetX</pFeature>
-    <pFeature>OffsetY</pFeature>
-    <pFeature>PixelFormat</pFeature>
-  </Category>
-  <Enumeration Name="ComponentSelector" NameSpace="Standard">
-    <EnumEntry Name="Range" NameSpace="Standard"><Value>4</Value></EnumEntry>
-    <pValue>ComponentSelectorValue</pValue>
-  </Enumeration>
-  <Integer Name="ComponentSelectorValue" NameSpace="Custom"><Value>4</Value></Integer>
-  <Boolean Name="ComponentEnable" NameSpace="Standard">
-    <pValue>ComponentEnableReg</pValue><OnValue>1</OnValue><OffValue>0</OffValue>
-  </Boolean>
-  <IntReg Name="ComponentEnableReg" NameSpace="Custom">
-    <Address>0xA0E8</Address><Length>4</Length><AccessMode>RW</AccessMode><pPort>Device</pPort>
-    <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess>
-  </IntReg>
-  <IntReg Name="SensorWidth" NameSpace="Standard">
-    <Address>0x11C</Address><Length>4</Length><AccessMode>RO</AccessMode><pPort>Device</pPort>
-    <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess>
-  </IntReg>
-  <IntReg Name="SensorHeight" NameSpace="Standard">
-    <Address>0x118</Address><Length>4</Length><AccessMode>RO</AccessMode><pPort>Device</pPort>
-    <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess>
-  </IntReg>
-  <IntReg Name="Width" NameSpace="Standard">
-    <Address>0x100</Address><Length>4</Length><AccessMode>RO</AccessMode><pPort>Device</pPort>
-    <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess>
-  </IntReg>
-  <Integer Name="Height" NameSpace="Standard">
-    <pValue>HeightReg</pValue><Min>1</Min><Max>1</Max><Inc>1</Inc>
-  </Integer>
-  <IntReg Name="HeightReg" NameSpace="Custom">
-    <Address>0x104</Address><Length>4</Length><AccessMode>RW</AccessMode><pPort>Device</pPort>
-    <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess>
-  </IntReg>
-  <Integer Name="OffsetX" NameSpace="Standard"><Value>0</Value><Min>0</Min><Max>0</Max></Integer>
-  <Integer Name="OffsetY" NameSpace="Standard"><Value>0</Value><Min>0</Min><Max>0</Max></Integer>
-  <Enumeration Name="PixelFormat" NameSpace="Standard">
-    <EnumEntry Name="Coord3D_C16" NameSpace="Standard"><Value>17825976</Value></EnumEntry>
-    <EnumEntry Name="Coord3D_C32f" NameSpace="Standard"><Value>18874559</Value></EnumEntry>
-    <pValue>PixelFormatReg</pValue>
-  </Enumeration>
-  <IntReg Name="PixelFormatReg" NameSpace="Custom">
-    <Address>0x128</Address><Length>4</Length><AccessMode>RW</AccessMode><pPort>Device</pPort>
-    <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess>
-  </IntReg>
-
-  <Category Name="AcquisitionControl" NameSpace="Standard">
-    <pFeature>AcquisitionMode</pFeature>
-    <pFeature>AcquisitionStart</pFeature>
-    <pFeature>AcquisitionStop</pFeature>
-    <pFeature>AcquisitionFrameRate</pFeature>
-    <pFeature>TriggerSelector</pFeature>
-    <pFeature>TriggerMode</pFeature>
-    <pFeature>TriggerSource</pFeature>
-    <pFeature>TriggerActivation</pFeature>
-    <pFeature>TriggerSoftware</pFeature>
-    <pFeature>ExposureTime</pFeature>
-  </Category>
-  <Enumeration Name="AcquisitionMode" NameSpace="Standard">
-    <EnumEntry Name="Continuous" NameSpace="Standard"><Value>1</Value></EnumEntry>
-    <pValue>AcquisitionModeReg</pValue>
-  </Enumeration>
-  <IntReg Name="AcquisitionModeReg" NameSpace="Custom">
-    <Address>0x12C</Address><Length>4</Length><AccessMode>RW</AccessMode><pPort>Device</pPort>
-    <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess>
-  </IntReg>
-  <Command Name="AcquisitionStart" NameSpace="Standard">
-    <pValue>AcquisitionReg</pValue><CommandValue>1</CommandValue>
-  </Command>
-  <Command Name="AcquisitionStop" NameSpace="Standard">
-    <pValue>AcquisitionReg</pValue><CommandValue>0</CommandValue>
-  </Command>
-  <IntReg Name="AcquisitionReg" NameSpace="Custom">
-    <Address>0x124</Address><Length>4</Length><AccessMode>WO</AccessMode><pPort>Device</pPort>
-    <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess>
-  </IntReg>
-  <Float Name="AcquisitionFrameRate" NameSpace="Standard">
-    <pValue>FrameRateMaxReg</pValue><Min>0</Min><pMax>FrameRateMaxReg</pMax><Unit>Hz</Unit>
-  </Float>
-  <FloatReg Name="FrameRateMaxReg" NameSpace="Custom">
-    <Address>0xA0E0</Address><Length>8</Length><AccessMode>RO</AccessMode><pPort>Device</pPort>
-    <Endianess>BigEndian</Endianess>
-  </FloatReg>
-  <Enumeration Name="TriggerSelector" NameSpace="Standard">
-    <EnumEntry Name="FrameStart" NameSpace="Standard"><Value>0</Value></EnumEntry>
-    <pValue>TriggerSelectorValue</pValue>
-  </Enumeration>
-  <Integer Name="TriggerSelectorValue" NameSpace="Custom"><Value>0</Value></Integer>
-  <Enumeration Name="TriggerMode" NameSpace="Standard">
-    <EnumEntry Name="Off" NameSpace="Standard"><Value>0</Value></EnumEntry>
-    <EnumEntry Name="On" NameSpace="Standard"><Value>1</Value></EnumEntry>
-    <pValue>TriggerModeReg</pValue>
-  </Enumeration>
-  <IntReg Name="TriggerModeReg" NameSpace="Custom">
-    <Address>0x300</Address><Length>4</Length><AccessMode>RW</AccessMode><pPort>Device</pPort>
-    <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess>
-  </IntReg>
-  <Enumeration Name="TriggerSource" NameSpace="Standard">
-    <EnumEntry Name="Line0" NameSpace="Standard"><Value>0</Value></EnumEntry>
-    <EnumEntry Name="Software" NameSpace="Standard"><Value>1</Value></EnumEntry>
-    <pValue>TriggerSourceReg</pValue>
-  </Enumeration>
-  <IntReg Name="TriggerSourceReg" NameSpace="Custom">
-    <Address>0x304</Address><Length>4</Length><AccessMode>RW</AccessMode><pPort>Device</pPort>
-    <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess>
-  </IntReg>
-  <Enumeration Name="TriggerActivation" NameSpace="Standard">
-    <EnumEntry Name="RisingEdge" NameSpace="Standard"><Value>0</Value></EnumEntry>
-    <pValue>TriggerActivationReg</pValue>
-  </Enumeration>
-  <IntReg Name="TriggerActivationReg" NameSpace="Custom">
-    <Address>0x308</Address><Length>4</Length><AccessMode>RW</AccessMode><pPort>Device</pPort>
-    <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess>
-  </IntReg>
-  <Command Name="TriggerSoftware" NameSpace="Standard">
-    <pValue>TriggerSoftwareReg</pValue><CommandValue>1</CommandValue>
-  </Command>
-  <IntReg Name="TriggerSoftwareReg" NameSpace="Custom">
-    <Address>0x30C</Address><Length>4</Length><AccessMode>WO</AccessMode><pPort>Device</pPort>
-    <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess>
-  </IntReg>
-  <Float Name="ExposureTime" NameSpace="Standard">
-    <pValue>ExposureTimeConverter</pValue><Min>1</Min><Max>1000000</Max><Unit>us</Unit>
-  </Float>
-  <Converter Name="ExposureTimeConverter" NameSpace="Custom">
-    <FormulaTo>FROM</FormulaTo><FormulaFrom>TO</FormulaFrom><pValue>ExposureTimeReg</pValue>
-  </Converter>
-  <IntReg Name="ExposureTimeReg" NameSpace="Custom">
-    <Address>0x120</Address><Length>4</Length><AccessMode>RW</AccessMode><pPort>Device</pPort>
-    <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess>
-  </IntReg>
-
-  <Category Name="Scan3dControl" NameSpace="Standard">
-    <pFeature>Scan3dDistanceUnit</pFeature>
-    <pFeature>Scan3dCoordinateSystem</pFeature>
-    <pFeature>Scan3dOutputMode</pFeature>
-    <pFeature>Scan3dCoordinateSelector</pFeature>
-    <pFeature>Scan3dCoordinateScale</pFeature>
-    <pFeature>Scan3dCoordinateOffset</pFeature>
-    <pFeature>Scan3dAxisMin</pFeature>
-    <pFeature>Scan3dAxisMax</pFeature>
-    <pFeature>Scan3dInvalidDataFlag</pFeature>
-    <pFeature>Scan3dInvalidDataValue</pFeature>
-  </Category>
-  <Enumeration Name="Scan3dDistanceUnit" NameSpace="Standard">
-    <EnumEntry Name="Millimeter" NameSpace="Standard"><Value>0</Value></EnumEntry>
-    <pValue>Scan3dDistanceUnitValue</pValue>
-  </Enumeration>
-  <Integer Name="Scan3dDistanceUnitValue" NameSpace="Custom"><Value>0</Value></Integer>
-  <Enumeration Name="Scan3dCoordinateSystem" NameSpace="Standard">
-    <EnumEntry Name="Cartesian" NameSpace="Standard"><Value>0</Value></EnumEntry>
-    <pValue>Scan3dCoordinateSystemValue</pValue>
-  </Enumeration>
-  <Integer Name="Scan3dCoordinateSystemValue" NameSpace="Custom"><Value>0</Value></Integer>
-  <Enumeration Name="Scan3dOutputMode" NameSpace="Standard">
-    <EnumEntry Name="RectifiedC" NameSpace="Standard"><Value>7</Value></EnumEntry>
-    <pValue>Scan3dOutputModeValue</pValue>
-  </Enumeration>
-  <Integer Name="Scan3dOutputModeValue" NameSpace="Custom"><Value>7</Value></Integer>
-  <Enumeration Name="Scan3dCoordinateSelector" NameSpace="Standard">
-    <EnumEntry Name="CoordinateA" NameSpace="Standard"><Value>0</Value></EnumEntry>
-    <EnumEntry Name="CoordinateC" NameSpace="Standard"><Value>2</Value></EnumEntry>
-    <pValue>Scan3dCoordinateSelectorReg</pValue>
-  </Enumeration>
-  <IntReg Name="Scan3dCoordinateSelectorReg" NameSpace="Custom">
-    <Address>0xA000</Address><Length>4</Length><AccessMode>RW</AccessMode><pPort>Device</pPort>
-    <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess>
-  </IntReg>
-  <FloatReg Name="Scan3dCoordinateScale" NameSpace="Standard">
-    <Address>0xA010</Address><pIndex Offset="8">Scan3dCoordinateSelectorReg</pIndex>
-    <Length>8</Length><AccessMode>RO</AccessMode><pPort>Device</pPort>
-    <Endianess>BigEndian</Endianess>
-  </FloatReg>
-  <FloatReg Name="Scan3dCoordinateOffset" NameSpace="Standard">
-    <Address>0xA030</Address><pIndex Offset="8">Scan3dCoordinateSelectorReg</pIndex>
-    <Length>8</Length><AccessMode>RO</AccessMode><pPort>Device</pPort>
-    <Endianess>BigEndian</Endianess>
-  </FloatReg>
-  <FloatReg Name="Scan3dAxisMin" NameSpace="Standard">
-    <Address>0xA050</Address><pIndex Offset="8">Scan3dCoordinateSelectorReg</pIndex>
-    <Length>8</Length><AccessMode>RO</AccessMode><pPort>Device</pPort>
-    <Endianess>BigEndian</Endianess>
-  </FloatReg>
-  <FloatReg Name="Scan3dAxisMax" NameSpace="Standard">
-    <Address>0xA070</Address><pIndex Offset="8">Scan3dCoordinateSelectorReg</pIndex>
-    <Length>8</Length><AccessMode>RO</AccessMode><pPort>Device</pPort>
-    <Endianess>BigEndian</Endianess>
-  </FloatReg>
-  <Boolean Name="Scan3dInvalidDataFlag" NameSpace="Standard">
-    <pValue>Scan3dInvalidDataFlagReg</pValue><OnValue>1</OnValue><OffValue>0</OffValue>
-  </Boolean>
-  <IntReg Name="Scan3dInvalidDataFlagReg" NameSpace="Custom">
-    <Address>0xA090</Address><pIndex Offset="4">Scan3dCoordinateSelectorReg</pIndex>
-    <Length>4</Length><AccessMode>RO</AccessMode><pPort>Device</pPort>
-    <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess>
-  </IntReg>
-  <FloatReg Name="Scan3dInvalidDataValue" NameSpace="Standard">
-    <Address>0xA0A0</Address><pIndex Offset="8">Scan3dCoordinateSelectorReg</pIndex>
-    <Length>8</Length><AccessMode>RO</AccessMode><pPort>Device</pPort>
-    <Endianess>BigEndian</Endianess>
-  </FloatReg>
-
-  <!-- Chunk features as SFNC names them. The fake camera cannot send chunk data, so the values
-       are device registers holding what was latched with the last profile. -->
-  <Category Name="ChunkDataControl" NameSpace="Standard">
-    <pFeature>ChunkModeActive</pFeature>
-    <pFeature>ChunkSelector</pFeature>
-    <pFeature>ChunkEnable</pFeature>
-    <pFeature>ChunkEncoderValue</pFeature>
-    <pFeature>ChunkFrameID</pFeature>
-  </Category>
-  <Boolean Name="ChunkModeActive" NameSpace="Standard">
-    <pValue>ChunkModeActiveReg</pValue><OnValue>1</OnValue><OffValue>0</OffValue>
-  </Boolean>
-  <IntReg Name="ChunkModeActiveReg" NameSpace="Custom">
-    <Address>0xA0C0</Address><Length>4</Length><AccessMode>RW</AccessMode><pPort>Device</pPort>
-    <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess>
-  </IntReg>
-  <Enumeration Name="ChunkSelector" NameSpace="Standard">
-    <EnumEntry Name="EncoderValue" NameSpace="Standard"><Value>0</Value></EnumEntry>
-    <EnumEntry Name="FrameID" NameSpace="Standard"><Value>1</Value></EnumEntry>
-    <pValue>ChunkSelectorReg</pValue>
-  </Enumeration>
-  <IntReg Name="ChunkSelectorReg" NameSpace="Custom">
-    <Address>0xA0C4</Address><Length>4</Length><AccessMode>RW</AccessMode><pPort>Device</pPort>
-    <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess>
-  </IntReg>
-  <Boolean Name="ChunkEnable" NameSpace="Standard">
-    <pValue>ChunkEnableReg</pValue><OnValue>1</OnValue><OffValue>0</OffValue>
-  </Boolean>
-  <IntReg Name="ChunkEnableReg" NameSpace="Custom">
-    <Address>0xA0C8</Address><pIndex Offset="4">ChunkSelectorReg</pIndex>
-    <Length>4</Length><AccessMode>RW</AccessMode><pPort>Device</pPort>
-    <Sign>Unsigned</Sign><Endianess>BigEndian</Endianess>
-  </IntReg>
-  <IntReg Name="ChunkEncoderValue" NameSpace="Standard">
-    <Address>0xA0D0</Address><Length>8</Length><AccessMode>RO</AccessMode><pPort>Device</pPort>
-    <Cachable>NoCache</Cachable><Sign>Signed</Sign><Endianess>BigEndian</Endianess>
-  </IntReg>
-  <IntReg Name="ChunkFrameID" NameSpace="Standard">
-    <Address>0xA0D8</Address><Length>8</Length><AccessMode>RO</AccessMode><pPort>Device</pPort>
-    <Cachable>NoCache</Cachable><Sign>Unsigned</Sign><Endianess>BigEndian</Endianess>
-  </IntReg>
-
-  <Category Name="TransportLayerControl" NameSpace="Standard">
-    <pFeature>PayloadSize</pFeature>
-  </Category>
-  <IntSwissKnife Name="PayloadSize" NameSpace="Standard">
+// PayloadSize: Width x Height pixels of the PixelFormat's bits (PFNC: bits 16..23).
+constexpr char kXmlTail[] = R"XML(  <IntSwissKnife Name="PayloadSize" NameSpace="Standard">
     <pVariable Name="WIDTH">Width</pVariable>
     <pVariable Name="HEIGHT">Height</pVariable>
     <pVariable Name="PIXELFORMAT">PixelFormatReg</pVariable>
     <Formula>WIDTH * HEIGHT * ((PIXELFORMAT &gt;&gt; 16) &amp; 0xFF) / 8</Formula>
   </IntSwissKnife>
-
   <Port Name="Device" NameSpace="Standard"/>
 </RegisterDescription>
 )XML";
+
+std::string Element(const std::string& tag, const std::string& value) {
+  return "<" + tag + ">" + value + "</" + tag + ">";
+}
+
+// A node of the map, one a line: `type` ("Integer", "IntReg", ...) with `inside` its elements.
+// Standard: an SFNC feature; Custom: ours (the registers and constants behind them).
+std::string Node(const std::string& type, const std::string& name, const std::string& inside,
+                 const char* name_space = "Standard") {
+  return "  <" + type + " Name=\"" + name + "\" NameSpace=\"" + name_space + "\">" + inside + "</" +
+         type + ">\n";
+}
+
+// Where a register is in the device's memory: `length` bytes at `address`, or, indexed by the
+// register `index` names, at address + length x its value.
+std::string Memory(guint32 address, int length, const char* access, const char* index) {
+  char hex[16];
+  std::snprintf(hex, sizeof hex, "0x%X", static_cast<unsigned>(address));
+  std::string s = Element("Address", hex);
+  if (index != nullptr) {
+    s += "<pIndex Offset=\"" + std::to_string(length) + "\">" + index + "</pIndex>";
+  }
+  return s + Element("Length", std::to_string(length)) + Element("AccessMode", access) +
+         Element("pPort", "Device");
+}
+
+// A string register: `length` bytes, NUL-padded.
+std::string StringReg(const std::string& name, guint32 address, int length, const char* access) {
+  return Node("StringReg", name, Memory(address, length, access, nullptr));
+}
+
+// An integer register, big-endian as GigE Vision's are.
+struct IntRegister {
+  guint32 address = 0;
+  const char* access = "RW";
+  const char* index = nullptr;  // the selector register it is indexed by
+  int length = 4;
+  const char* sign = "Unsigned";
+  bool cached = true;  // false: read from the device each time (it changes by itself)
+};
+
+std::string IntReg(const std::string& name, const IntRegister& r, const char* name_space) {
+  const std::string cache = r.cached ? "" : Element("Cachable", "NoCache");
+  return Node("IntReg", name,
+              Memory(r.address, r.length, r.access, r.index) + cache + Element("Sign", r.sign) +
+                  Element("Endianess", "BigEndian"),
+              name_space);
+}
+
+// A read-only f64 register, big-endian.
+std::string FloatReg(const std::string& name, guint32 address, const char* index,
+                     const char* name_space) {
+  return Node("FloatReg", name, Memory(address, 8, "RO", index) + Element("Endianess", "BigEndian"),
+              name_space);
+}
+
+// A chunk value served as a device register (the opening comment says why): 8 bytes, never
+// cached, since it changes with each profile.
+std::string ChunkRegister(const std::string& name, guint32 address, const char* sign) {
+  const IntRegister r{
+      .address = address, .access = "RO", .length = 8, .sign = sign, .cached = false};
+  return IntReg(name, r, "Standard");
+}
+
+// A category: the features a client lists under `name`.
+std::string Category(const std::string& name, std::initializer_list<const char*> features) {
+  std::string inside;
+  for (const char* f : features) inside += Element("pFeature", f);
+  return Node("Category", name, inside);
+}
+
+using Entries = std::initializer_list<std::pair<const char*, guint32>>;
+
+std::string Enumeration(const std::string& name, Entries entries, const std::string& value) {
+  std::string inside;
+  for (const auto& [entry, v] : entries) {
+    inside += "<EnumEntry Name=\"" + std::string(entry) + "\" NameSpace=\"Standard\">" +
+              Element("Value", std::to_string(v)) + "</EnumEntry>";
+  }
+  return Node("Enumeration", name, inside + Element("pValue", value));
+}
+
+// An enumeration with one entry, which it always has: its value is a constant, <name>Value.
+std::string FixedEnumeration(const std::string& name, const char* entry, guint32 value) {
+  return Enumeration(name, {{entry, value}}, name + "Value") +
+         Node("Integer", name + "Value", Element("Value", std::to_string(value)), "Custom");
+}
+
+// An enumeration the device holds in a register of its own, <name>Reg.
+std::string RegisterEnumeration(const std::string& name, Entries entries, guint32 address) {
+  return Enumeration(name, entries, name + "Reg") + IntReg(name + "Reg", {address}, "Custom");
+}
+
+// A boolean the device holds in <name>Reg, 1 for on.
+std::string RegisterBoolean(const std::string& name, const IntRegister& reg) {
+  const std::string inside =
+      Element("pValue", name + "Reg") + Element("OnValue", "1") + Element("OffValue", "0");
+  return Node("Boolean", name, inside) + IntReg(name + "Reg", reg, "Custom");
+}
+
+// Commands, each writing its value to the one write-only register `reg`.
+std::string Commands(const std::string& reg, guint32 address, Entries commands) {
+  std::string s;
+  for (const auto& [name, value] : commands) {
+    s += Node("Command", name,
+              Element("pValue", reg) + Element("CommandValue", std::to_string(value)));
+  }
+  return s + IntReg(reg, {.address = address, .access = "WO"}, "Custom");
+}
+
+std::string ProfilerXml() {
+  const char* coordinate = "Scan3dCoordinateSelectorReg";
+  std::string x = kXmlHead;
+  x += Category("Root", {"DeviceControl", "ImageFormatControl", "AcquisitionControl",
+                         "Scan3dControl", "ChunkDataControl", "TransportLayerControl"});
+
+  x += Category("DeviceControl",
+                {"DeviceVendorName", "DeviceModelName", "DeviceSerialNumber", "DeviceUserID"});
+  x += StringReg("DeviceVendorName", kManufacturerName, 32, "RO");
+  x += StringReg("DeviceModelName", kModelName, 32, "RO");
+  x += StringReg("DeviceSerialNumber", kSerialNumber, 16, "RO");
+  x += StringReg("DeviceUserID", kUserDefinedName, 16, "RW");
+
+  x += Category("ImageFormatControl",
+                {"ComponentSelector", "ComponentEnable", "SensorWidth", "SensorHeight", "Width",
+                 "Height", "OffsetX", "OffsetY", "PixelFormat"});
+  x += FixedEnumeration("ComponentSelector", "Range", 4);
+  x += RegisterBoolean("ComponentEnable", {kComponentEnable});
+  x += IntReg("SensorWidth", {.address = kSensorWidth, .access = "RO"}, "Standard");
+  x += IntReg("SensorHeight", {.address = kSensorHeight, .access = "RO"}, "Standard");
+  x += IntReg("Width", {.address = kWidth, .access = "RO"}, "Standard");
+  x += Node("Integer", "Height",
+            Element("pValue", "HeightReg") + Element("Min", "1") + Element("Max", "1") +
+                Element("Inc", "1"));
+  x += IntReg("HeightReg", {kHeight}, "Custom");
+  for (const char* offset : {"OffsetX", "OffsetY"}) {
+    x += Node("Integer", offset, Element("Value", "0") + Element("Min", "0") + Element("Max", "0"));
+  }
+  x += RegisterEnumeration("PixelFormat",
+                           {{"Coord3D_C16", ARV_PIXEL_FORMAT_COORD3D_C_16},
+                            {"Coord3D_C32f", ARV_PIXEL_FORMAT_COORD3D_C_32F}},
+                           kPixelFormat);
+
+  x += Category("AcquisitionControl",
+                {"AcquisitionMode", "AcquisitionStart", "AcquisitionStop", "AcquisitionFrameRate",
+                 "TriggerSelector", "TriggerMode", "TriggerSource", "TriggerActivation",
+                 "TriggerSoftware", "ExposureTime"});
+  x += RegisterEnumeration("AcquisitionMode", {{"Continuous", 1}}, 0x12C);
+  x += Commands("AcquisitionReg", 0x124, {{"AcquisitionStart", 1}, {"AcquisitionStop", 0}});
+  x += Node("Float", "AcquisitionFrameRate",
+            Element("pValue", "FrameRateMaxReg") + Element("Min", "0") +
+                Element("pMax", "FrameRateMaxReg") + Element("Unit", "Hz"));
+  x += FloatReg("FrameRateMaxReg", kFrameRateMax, nullptr, "Custom");
+  x += FixedEnumeration("TriggerSelector", "FrameStart", 0);
+  x += RegisterEnumeration("TriggerMode", {{"Off", 0}, {"On", 1}}, 0x300);
+  x += RegisterEnumeration("TriggerSource", {{"Line0", 0}, {"Software", 1}}, 0x304);
+  x += RegisterEnumeration("TriggerActivation", {{"RisingEdge", 0}}, 0x308);
+  x += Commands("TriggerSoftwareReg", 0x30C, {{"TriggerSoftware", 1}});
+  x += Node("Float", "ExposureTime",
+            Element("pValue", "ExposureTimeConverter") + Element("Min", "1") +
+                Element("Max", "1000000") + Element("Unit", "us"));
+  x += Node("Converter", "ExposureTimeConverter",
+            Element("FormulaTo", "FROM") + Element("FormulaFrom", "TO") +
+                Element("pValue", "ExposureTimeReg"),
+            "Custom");
+  x += IntReg("ExposureTimeReg", {kExposureUs}, "Custom");
+
+  x +=
+      Category("Scan3dControl", {"Scan3dDistanceUnit", "Scan3dCoordinateSystem", "Scan3dOutputMode",
+                                 "Scan3dCoordinateSelector", "Scan3dCoordinateScale",
+                                 "Scan3dCoordinateOffset", "Scan3dAxisMin", "Scan3dAxisMax",
+                                 "Scan3dInvalidDataFlag", "Scan3dInvalidDataValue"});
+  x += FixedEnumeration("Scan3dDistanceUnit", "Millimeter", 0);
+  x += FixedEnumeration("Scan3dCoordinateSystem", "Cartesian", 0);
+  x += FixedEnumeration("Scan3dOutputMode", "RectifiedC", 7);
+  x += RegisterEnumeration("Scan3dCoordinateSelector", {{"CoordinateA", kA}, {"CoordinateC", kC}},
+                           0xA000);
+  x += FloatReg("Scan3dCoordinateScale", kCoordinateScale, coordinate, "Standard");
+  x += FloatReg("Scan3dCoordinateOffset", kCoordinateOffset, coordinate, "Standard");
+  x += FloatReg("Scan3dAxisMin", kAxisMin, coordinate, "Standard");
+  x += FloatReg("Scan3dAxisMax", kAxisMax, coordinate, "Standard");
+  x += RegisterBoolean("Scan3dInvalidDataFlag",
+                       {.address = kInvalidFlag, .access = "RO", .index = coordinate});
+  x += FloatReg("Scan3dInvalidDataValue", kInvalidValue, coordinate, "Standard");
+
+  // Chunk features as SFNC names them. The fake camera cannot send chunk data, so the values
+  // are device registers holding what was latched with the last profile.
+  x += Category("ChunkDataControl", {"ChunkModeActive", "ChunkSelector", "ChunkEnable",
+                                     "ChunkEncoderValue", "ChunkFrameID"});
+  x += RegisterBoolean("ChunkModeActive", {0xA0C0});
+  x += RegisterEnumeration("ChunkSelector", {{"EncoderValue", 0}, {"FrameID", 1}}, 0xA0C4);
+  x += RegisterBoolean("ChunkEnable", {.address = 0xA0C8, .index = "ChunkSelectorReg"});
+  x += ChunkRegister("ChunkEncoderValue", kChunkEncoderValue, "Signed");
+  x += ChunkRegister("ChunkFrameID", kChunkFrameId, "Unsigned");
+
+  x += Category("TransportLayerControl", {"PayloadSize"});
+  return x + kXmlTail;
+}
 
 void WriteString(ArvFakeCamera* camera, guint32 address, size_t size, const std::string& s) {
   std::string padded = s.substr(0, size - 1);
@@ -399,28 +317,6 @@ void WriteF64(ArvFakeCamera* camera, guint32 address, double v) {
   uint64_t bits = 0;
   std::memcpy(&bits, &v, sizeof bits);
   WriteU64(camera, address, bits);
-}
-
-// The fake camera reports running even when its GVCP port is taken (one camera per address):
-// try the port first.
-Status CheckAddressFree(const std::string& address) {
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_port = htons(3956);
-  if (inet_pton(AF_INET, address.c_str(), &a.sin_addr) != 1) {
-    return InvalidArgument("'" + address + "' is not an IPv4 address");
-  }
-  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
-  const int rc = fd < 0 ? -1 : bind(fd, reinterpret_cast<const sockaddr*>(&a), sizeof a);
-  const int err = errno;
-  if (fd >= 0) close(fd);
-  if (rc != 0) {
-    return Status(StatusCode::kDeviceError,
-                  "cannot serve a GigE Vision profiler on " + address +
-                      ":3956: " + std::strerror(err) +
-                      (err == EADDRINUSE ? " (another device serves that address)" : ""));
-  }
-  return Status::Ok();
 }
 
 }  // namespace
@@ -531,7 +427,7 @@ Result<std::unique_ptr<SimulatedGigEProfiler>> SimulatedGigEProfiler::Start(
   if (serial.empty() || serial.size() >= 16) {
     return InvalidArgument("the serial number must have 1..15 characters");
   }
-  INSITU_RETURN_IF_ERROR(CheckAddressFree(address));
+  INSITU_RETURN_IF_ERROR(CheckGvcpPortFree(address, "profiler"));
 
   auto impl = std::make_unique<Impl>();
   impl->source = std::move(source);
@@ -550,8 +446,8 @@ Result<std::unique_ptr<SimulatedGigEProfiler>> SimulatedGigEProfiler::Start(
     return Status(StatusCode::kDeviceError,
                   std::string("simulated GigE profiler: memfd: ") + std::strerror(errno));
   }
-  const size_t size = sizeof kProfilerXml - 1;
-  const bool written = write(fd, kProfilerXml, size) == static_cast<ssize_t>(size);
+  const std::string xml = ProfilerXml();
+  const bool written = write(fd, xml.data(), xml.size()) == static_cast<ssize_t>(xml.size());
   const std::string path = "/proc/self/fd/" + std::to_string(fd);
   impl->fake = written ? arv_gv_fake_camera_new_full(address.c_str(), serial.c_str(), path.c_str())
                        : nullptr;
