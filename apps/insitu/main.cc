@@ -4,8 +4,8 @@
 //   insitu cor import FILE.cor --out TABLE.csv [--reading R]   an EzCad correction as insitu's
 //                                                 field table, read as the head model explains
 //   insitu cor export TABLE.csv --lens MM [--format jcz|lmc1] [--reading R] --out FILE.cor
-// Exit codes: 0 success, 2 bad input (job file, --set, calibration file), 1 failure while
-// running (the report says what), 130 interrupted.
+// Exit codes: 0 done, 1 device or job failure while running (the report says what), 2 bad input
+// (command line, job file, --set, calibration, pattern or data file), 130 interrupted.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <atomic>
@@ -63,8 +63,6 @@ int Run(const std::string& job_path, const std::string& out_dir,
   options.out_dir =
       out_dir.empty() ? "insitu-out/" + std::filesystem::path(job_path).stem().string() : out_dir;
   options.cancel = &g_cancel;
-  std::signal(SIGINT, OnSignal);
-  std::signal(SIGTERM, OnSignal);
   auto report = insitu::job::RunJob(*job, options);
   if (!report.ok()) {
     std::fprintf(stderr, "insitu: %s\n", report.status().message().c_str());
@@ -190,6 +188,11 @@ int main(int argc, char** argv) {
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "off"}));
   app.require_subcommand(1);
+  app.footer(
+      "Exit codes: 0 done; 1 device or job failure (the report says what); 2 bad input (the "
+      "command line, a job file or --set, a calibration, pattern or data file); 130 "
+      "interrupted (SIGINT or SIGTERM: a scan stops between lines, a marking list is aborted "
+      "by the head within one clock tick, the laser off).");
 
   CLI::App* run = app.add_subcommand("run", "run a job file (YAML) on the machine it names");
   std::string job_path, out_dir;
@@ -237,10 +240,17 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help and --version print and exit 0; a command line CLI11 refuses is bad input.
+    return app.exit(e) == 0 ? 0 : 2;
   }
   insitu::SetLogLevel(log_level);
-  if (run->parsed()) return Run(job_path, out_dir, sets);
+  if (run->parsed()) {
+    // Before the job file loads: an interrupt then stops the job at its first step. (The other
+    // commands keep the default: an interrupt ends them at once, with 130 from the shell.)
+    std::signal(SIGINT, OnSignal);
+    std::signal(SIGTERM, OnSignal);
+    return Run(job_path, out_dir, sets);
+  }
   if (diagnose->parsed()) return Diagnose(csv_path, diag_out);
   if (cor_import->parsed()) return CorImport(cor_in, cor_out, import_reading);
   if (cor_export->parsed()) {

@@ -254,7 +254,9 @@ Status CheckJob(const LoadedJob& job) {
   return UnknownKind(job);
 }
 
-Result<Report> RunJob(const LoadedJob& job, const RunOptions& options) {
+namespace {
+
+Result<Report> RunJobOfKind(const LoadedJob& job, const RunOptions& options) {
   if (job.kind == "scan" || job.kind == "accuracy") return RunScanJob(job, options);
   if (job.kind == "calibrate") return RunCalibrateJob(job, options);
   if (job.kind == "field_calibration") return RunFieldCalibrationJob(job, options);
@@ -263,6 +265,19 @@ Result<Report> RunJob(const LoadedJob& job, const RunOptions& options) {
   if (job.kind == "calibrate_profiler") return RunCalibrateProfilerJob(job, options);
   if (job.kind == "inspect_grooves") return RunInspectGroovesJob(job, options);
   return UnknownKind(job);
+}
+
+}  // namespace
+
+Result<Report> RunJob(const LoadedJob& job, const RunOptions& options) {
+  Result<Report> report = RunJobOfKind(job, options);
+  // A job stopped by its cancel flag ends cancelled whatever phase it was in (a scan between
+  // lines, a list the head aborted, a loop of profiles): the phase saw it as its own failure.
+  if (!report.ok() && report.status().code() != StatusCode::kCancelled &&
+      options.cancel != nullptr && options.cancel->load()) {
+    return Status(StatusCode::kCancelled, report.status().message());
+  }
+  return report;
 }
 
 }  // namespace insitu::job

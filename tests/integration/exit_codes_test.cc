@@ -1,0 +1,73 @@
+// insitu's exit codes, on the process as a shell or a cell's PLC sees them: 0 done, 1 a device
+// failing while the job runs, 2 bad input, 130 interrupted by SIGINT mid-job.
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path Dir() { return fs::temp_directory_path() / "insitu_exit_codes_test"; }
+
+std::string Job(const std::string& name) {
+  return std::string(INSITU_SOURCE_DIR) + "/config/jobs/" + name;
+}
+
+// Runs insitu with `args` (output to /dev/null); after `interrupt_after_s` (>= 0) sends SIGINT.
+// Returns the exit code, or -1 when it did not exit normally.
+int Insitu(const std::vector<std::string>& args, double interrupt_after_s = -1.0) {
+  const pid_t pid = fork();
+  if (pid == 0) {
+    std::vector<char*> argv{const_cast<char*>(INSITU_BIN)};
+    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    freopen("/dev/null", "w", stdout);
+    freopen("/dev/null", "w", stderr);
+    execv(INSITU_BIN, argv.data());
+    _exit(127);
+  }
+  if (interrupt_after_s >= 0) {
+    std::this_thread::sleep_for(std::chrono::duration<double>(interrupt_after_s));
+    kill(pid, SIGINT);
+  }
+  int status = 0;
+  waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+TEST(ExitCodes, DoneFailedBadInputInterrupted) {
+  fs::remove_all(Dir());
+  const std::string out = (Dir() / "out").string();
+  // 0: the profiler's mounting calibrated on the block (a second of simulation).
+  EXPECT_EQ(Insitu({"run", Job("calibrate_profiler.yaml"), "--out", out, "--set",
+                    "output.mount_file=" + (Dir() / "mount.yaml").string()}),
+            0);
+  // 1: the profiler stops sending while the block is scanned.
+  EXPECT_EQ(Insitu({"run", Job("calibrate_profiler.yaml"), "--out", out, "--set",
+                    "world.faults.profiler_stop_at_profile=3"}),
+            1);
+  // 2: a key the job does not have, a job file that is not there, a command line it refuses.
+  EXPECT_EQ(Insitu({"run", Job("calibrate_profiler.yaml"), "--out", out, "--set",
+                    "profiler.block.base_mm=-1"}),
+            2);
+  EXPECT_EQ(Insitu({"run", (Dir() / "no_such_job.yaml").string()}), 2);
+  EXPECT_EQ(Insitu({"run"}), 2);
+  // 130: the calibrate job (about 20 s of board views) interrupted two seconds in.
+  EXPECT_EQ(Insitu({"run", Job("calibrate.yaml"), "--out", (Dir() / "calibrate").string(), "--set",
+                    "output.calibration=" + (Dir() / "machine.yaml").string()},
+                   2.0),
+            130);
+  // Interrupted, it kept the previous calibration: none was written.
+  EXPECT_FALSE(fs::exists(Dir() / "machine.yaml"));
+}
+
+}  // namespace
