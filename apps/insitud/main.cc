@@ -84,9 +84,11 @@ insitu::Result<DaemonConfig> ReadConfig(const std::string& path) {
   insitu::ConfigReader r(root);
   DaemonConfig c;
   const std::vector<std::string> known{
-      "version",     "bind_address",     "port",           "token",       "token_file",
-      "admin_token", "admin_token_file", "results_dir",    "jobs_dir",    "machine",
-      "queue",       "max_queued",       "max_line_bytes", "max_clients", "idle_timeout_s",
+      "version",        "bind_address",        "port",        "token",
+      "token_file",     "admin_token",         "admin_token_file",
+      "results_dir",    "jobs_dir",            "machine",     "queue",
+      "max_queued",     "max_line_bytes",      "max_clients", "idle_timeout_s",
+      "auth_timeout_s", "max_unauthenticated", "max_clients_per_address",
       "log_level"};
   for (const std::string& key : root.Keys()) {
     if (std::find(known.begin(), known.end(), key) == known.end()) {
@@ -128,6 +130,9 @@ insitu::Result<DaemonConfig> ReadConfig(const std::string& path) {
   c.server.max_line_bytes = static_cast<size_t>(std::max(0, max_line));
   r.Read("max_clients", &c.server.max_clients);
   r.Read("idle_timeout_s", &c.server.idle_timeout_s);
+  r.Read("auth_timeout_s", &c.server.auth_timeout_s);
+  r.Read("max_unauthenticated", &c.server.max_unauthenticated);
+  r.Read("max_clients_per_address", &c.server.max_clients_per_address);
   r.ReadEnum("log_level", &c.log_level, {"trace", "debug", "info", "warn", "error", "off"});
   if (r.ok()) r.FailFromValidate(c.server.Validate());
   INSITU_RETURN_IF_ERROR(r.Finish());

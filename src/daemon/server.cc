@@ -1,5 +1,7 @@
 #include "insitu/daemon/server.h"
 
+#include "insitu/daemon/confine.h"
+
 #define ASIO_STANDALONE
 #include <algorithm>
 #include <asio.hpp>
@@ -8,6 +10,7 @@
 #include <deque>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <mutex>
 #include <set>
 #include <sstream>
@@ -40,6 +43,13 @@ Status ServerOptions::Validate() const {
   if (max_line_bytes < 64) return InvalidArgument("max_line_bytes must be >= 64");
   if (max_clients < 1) return InvalidArgument("max_clients must be >= 1");
   if (!(idle_timeout_s > 0)) return InvalidArgument("idle_timeout_s must be > 0");
+  if (!(auth_timeout_s > 0 && auth_timeout_s <= 3600)) {
+    return InvalidArgument("auth_timeout_s must be in (0, 3600] seconds");
+  }
+  if (max_unauthenticated < 1 || max_unauthenticated > 100000) {
+    return InvalidArgument("max_unauthenticated must be in 1..100000");
+  }
+  if (max_clients_per_address < 1) return InvalidArgument("max_clients_per_address must be >= 1");
   if (max_queued < 1 || max_queued > 1000) return InvalidArgument("max_queued must be in 1..1000");
   if (!admin_token.empty() && admin_token == token) {
     return InvalidArgument("admin_token must differ from token");
@@ -61,7 +71,11 @@ struct Server::Impl {
   asio::steady_timer accept_retry{io};
   std::thread thread;
   std::set<std::shared_ptr<Session>> sessions;  // touched on the io thread only
-  std::atomic<int> clients{0};
+  std::atomic<int> clients{0};  // every open connection, refused ones until their line is sent
+  // The limits (header, "Limits"); io thread only.
+  int unauthenticated = 0;  // in the pool: a token is configured and their auth has not come
+  int authenticated = 0;    // in one of the max_clients slots
+  std::map<std::string, int> per_address;  // with a token or admin token: peer IP -> connections
   StateMachine state;
   int bound_port = 0;
   std::unique_ptr<ResultsStore> store;
@@ -95,16 +109,62 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
       : server_(server),
         socket_(std::move(socket)),
         buffer_(server->options.max_line_bytes + 1),
-        timer_(server->io) {
+        timer_(server->io),
+        auth_timer_(server->io) {
     asio::error_code ec;
     const auto ep = socket_.remote_endpoint(ec);
-    peer_ = ec ? std::string("?") : ep.address().to_string() + ":" + std::to_string(ep.port());
+    if (!ec) {
+      asio::ip::address a = ep.address();
+      // An IPv4 peer of a dual-stack socket is the same peer as over IPv4.
+      if (a.is_v6() && a.to_v6().is_v4_mapped()) {
+        a = asio::ip::make_address_v4(asio::ip::v4_mapped, a.to_v6());
+      }
+      address_ = a.to_string();
+    }
+    peer_ = ec ? std::string("?") : address_ + ":" + std::to_string(ep.port());
+  }
+
+  // Takes a place for this new connection (the unauthenticated pool with a token, else a
+  // slot) and counts it against its address. Returns why it is refused, or "" when admitted.
+  std::string Admit() {
+    const ServerOptions& o = server_->options;
+    const bool per_address = !o.token.empty() || !o.admin_token.empty();
+    if (per_address) {
+      const auto it = server_->per_address.find(address_);
+      if (it != server_->per_address.end() && it->second >= o.max_clients_per_address) {
+        return "one address holds " + std::to_string(o.max_clients_per_address) +
+               " connections at most";
+      }
+    }
+    if (!o.token.empty()) {
+      if (server_->unauthenticated >= o.max_unauthenticated) {
+        return std::to_string(o.max_unauthenticated) +
+               " connections are already waiting to authenticate; try again shortly";
+      }
+      ++server_->unauthenticated;
+      slot_ = Slot::kUnauthenticated;
+    } else {
+      if (server_->authenticated >= o.max_clients) return TooManyClients();
+      ++server_->authenticated;
+      slot_ = Slot::kClient;
+    }
+    if (per_address) {
+      ++server_->per_address[address_];
+      address_counted_ = true;
+    }
+    return "";
   }
 
   void Begin() {
     ArmTimer();
+    if (slot_ == Slot::kUnauthenticated) {
+      ArmAuthTimer(std::chrono::milliseconds(
+          static_cast<int64_t>(server_->options.auth_timeout_s * 1000.0)));
+    }
     Read();
   }
+
+  const std::string& peer() const { return peer_; }
 
   void Send(const std::string& line) {
     if (closed_) return;
@@ -130,8 +190,10 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
     closed_ = true;
     asio::error_code ec;
     timer_.cancel();
+    auth_timer_.cancel();
     socket_.shutdown(asio::ip::tcp::socket::shutdown_both, ec);
     socket_.close(ec);
+    Release();
     server_->clients--;
     server_->sessions.erase(shared_from_this());
   }
@@ -139,6 +201,63 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
   bool subscribed() const { return subscribed_; }
 
  private:
+  enum class Slot { kNone, kUnauthenticated, kClient };
+
+  std::string TooManyClients() const {
+    return "the daemon serves " + std::to_string(server_->options.max_clients) +
+           " clients at most";
+  }
+
+  // Out of the unauthenticated pool into a slot, after a good token. False when every slot is
+  // taken (the connection is then refused).
+  bool Promote() {
+    if (slot_ != Slot::kUnauthenticated) return true;
+    if (server_->authenticated >= server_->options.max_clients) return false;
+    --server_->unauthenticated;
+    ++server_->authenticated;
+    slot_ = Slot::kClient;
+    auth_timer_.cancel();
+    return true;
+  }
+
+  void Release() {
+    if (slot_ == Slot::kUnauthenticated) --server_->unauthenticated;
+    if (slot_ == Slot::kClient) --server_->authenticated;
+    slot_ = Slot::kNone;
+    if (address_counted_) {
+      const auto it = server_->per_address.find(address_);
+      if (--it->second == 0) server_->per_address.erase(it);
+      address_counted_ = false;
+    }
+  }
+
+  // Fixed from the accept, not re-armed by lines: junk lines do not buy time. After the error
+  // line, a short grace for it to be written; a peer that does not take it is closed anyway,
+  // so a pool place is held auth_timeout_s + 1 s at most.
+  void ArmAuthTimer(std::chrono::milliseconds after) {
+    auth_timer_.expires_after(after);
+    auth_timer_.async_wait([self = shared_from_this()](const asio::error_code& ec) {
+      if (ec || self->closed_ || self->slot_ != Slot::kUnauthenticated) return;
+      if (self->closing_ || !self->out_.empty()) {
+        self->Close();
+        return;
+      }
+      self->server_->log->debug("closing {}: no auth within {} s", self->peer_,
+                                self->server_->options.auth_timeout_s);
+      self->SendAndClose(ReplyError(nullptr, "auth_timeout",
+                                    "no auth within " +
+                                        FormatSeconds(self->server_->options.auth_timeout_s) +
+                                        " s of connecting; closing the connection"));
+      self->ArmAuthTimer(std::chrono::seconds(1));
+    });
+  }
+
+  static std::string FormatSeconds(double s) {
+    std::ostringstream out;
+    out << s;
+    return out.str();
+  }
+
   void ArmTimer() {
     timer_.expires_after(
         std::chrono::milliseconds(static_cast<int64_t>(server_->options.idle_timeout_s * 1000.0)));
@@ -157,7 +276,9 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
   void Read() {
     asio::async_read_until(
         socket_, buffer_, '\n', [self = shared_from_this()](const asio::error_code& ec, size_t n) {
-          if (self->closed_) return;
+          // Closing: its last line is on the way, and nothing it says now counts (an auth after
+          // its deadline).
+          if (self->closed_ || self->closing_) return;
           if (ec == asio::error::not_found) {
             // The buffer filled without a newline: the line is over the limit.
             self->SendAndClose(
@@ -222,6 +343,11 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
         SendAndClose(ReplyError(r.id, "unauthorized", "wrong token"));
         return;
       }
+      if (!Promote()) {
+        server_->log->warn("refused {}: every client slot is taken", peer_);
+        SendAndClose(ReplyError(r.id, "too_many_clients", TooManyClients()));
+        return;
+      }
       authed_ = true;
       admin_ = admin;
       server_->log->info("{} authenticated as {}", peer_, admin ? "admin" : "operator");
@@ -278,9 +404,13 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
   Impl* server_;
   asio::ip::tcp::socket socket_;
   asio::streambuf buffer_;
-  asio::steady_timer timer_;
+  asio::steady_timer timer_;       // idle
+  asio::steady_timer auth_timer_;  // the auth deadline, while in the unauthenticated pool
   std::deque<std::string> out_;
+  std::string address_;  // the peer's IP, the per-address limit's key
   std::string peer_;
+  Slot slot_ = Slot::kNone;
+  bool address_counted_ = false;
   bool authed_ = false, admin_ = false, subscribed_ = false, closing_ = false, closed_ = false;
 };
 
@@ -298,10 +428,12 @@ void Server::Impl::Accept() {
     }
     auto session = std::make_shared<Session>(this, std::move(socket));
     sessions.insert(session);
-    if (++clients > options.max_clients) {
-      session->SendAndClose(ReplyError(
-          nullptr, "too_many_clients",
-          "the daemon serves " + std::to_string(options.max_clients) + " clients at most"));
+    ++clients;
+    const std::string refused = session->Admit();
+    if (!refused.empty()) {
+      // Debug only: a flood would otherwise write a line per connection.
+      log->debug("refused {}: {}", session->peer(), refused);
+      session->SendAndClose(ReplyError(nullptr, "too_many_clients", refused));
     } else {
       session->Begin();
     }
@@ -332,13 +464,20 @@ std::string Server::Impl::Run(const Request& r) {
       sets.push_back(it.key() + "=" + (v.is_string() ? v.get<std::string>() : v.dump()));
     }
   }
+  // A client changes a job's settings, never the files it reads or writes (confine.h).
+  const Status keys = CheckSetKeys(sets);
+  if (!keys.ok()) return ReplyError(r.id, keys);
   // The daemon's machine wins over the job's and the client's: it owns the cell.
   sets.insert(sets.end(), options.machine_sets.begin(), options.machine_sets.end());
   const nlohmann::json& spec = r.body["job"];
-  Result<job::LoadedJob> loaded =
-      spec.is_string()
-          ? job::LoadJobFile(job::ResolvePath(options.jobs_dir, spec.get<std::string>()), sets)
-          : job::LoadJobText(spec.dump(), "<run request>", options.jobs_dir, sets);
+  const auto load = [&]() -> Result<job::LoadedJob> {
+    if (!spec.is_string()) return job::LoadJobText(spec.dump(), "<run request>", options.jobs_dir, sets);
+    // A job file inside the jobs folder only.
+    INSITU_ASSIGN_OR_RETURN(const std::string path,
+                            JobPathInside(options.jobs_dir, spec.get<std::string>()));
+    return job::LoadJobFile(path, sets);
+  };
+  Result<job::LoadedJob> loaded = load();
   if (!loaded.ok()) return ReplyError(r.id, loaded.status());
   // Refused here, by file, line and key, before the machine is touched.
   const Status checked = job::CheckJob(*loaded);

@@ -292,8 +292,9 @@ TEST(Jobs, ABadJobIsRefusedBeforeAnythingMoves) {
   EXPECT_TRUE(c.Call(R"({"id": 5, "cmd": "list_results"})")["results"].empty());
 }
 
-// The daemon's machine (backend and calibration from its config) wins over the job's: a job
-// naming a calibration file this cell does not have runs on the cell's own.
+// The daemon's machine (backend and calibration from its config) wins over the job's: the
+// shipped job names a calibration file (out/calib/machine.yaml) this cell need not have, and
+// runs on the cell's own. A client cannot name another through `set`: refused by key.
 TEST(Jobs, TheDaemonsMachineWinsOverTheJobs) {
   ServerOptions o = Loopback("insitu_jobs_machine");
   o.machine_sets = {"machine.backend=sim",
@@ -303,9 +304,13 @@ TEST(Jobs, TheDaemonsMachineWinsOverTheJobs) {
   Client c(server.port());
   ASSERT_EQ(c.Call(R"({"id": 1, "cmd": "subscribe"})")["ok"], true);
   ASSERT_EQ(c.Call(R"({"id": 2, "cmd": "arm"})")["ok"], true);
-  const json started = c.Call(
+  const json refused = c.Call(
       RunLine(3, R"("job": "config/jobs/scan_step_gauge.yaml", "set": {"scan.x_start_mm": -3.0, )"
                  R"("scan.x_end_mm": -2.0, "machine.calibration": "no/such/calibration.yaml"})"));
+  ASSERT_EQ(refused["ok"], false) << refused.dump();
+  EXPECT_NE(refused["error"]["message"].get<std::string>().find("machine.calibration"),
+            std::string::npos);
+  const json started = c.Call(RunLine(4, kShortScan));
   ASSERT_EQ(started["ok"], true) << started.dump();
   EXPECT_EQ(WaitForJobEnd(c, started["job_id"])["status"], "done");
 }

@@ -1,6 +1,7 @@
 // The command socket on a loopback port with real TCP clients: the commands served, every
 // hostile input answered (or its connection closed) with the daemon still answering ping,
-// authentication, state events to subscribers, and 100 clients at once.
+// authentication, state events to subscribers, 100 clients at once, and a flood of connections
+// without the token that locks no operator out.
 #include "insitu/daemon/server.h"
 
 #include "support/line_client.h"
@@ -12,9 +13,11 @@
 #include <algorithm>
 #include <asio.hpp>
 #include <atomic>
+#include <chrono>
 #include <deque>
 #include <filesystem>
 #include <memory>
+#include <fstream>
 #include <string>
 #include <thread>
 #include <utility>
@@ -89,6 +92,36 @@ TEST(Server, HostileInputIsAnsweredAndTheDaemonStaysUp) {
   EXPECT_TRUE(Pong(c));
 }
 
+// A client names a job inside the jobs folder and changes its settings; it cannot reach a file
+// outside the folder, redirect what the job writes, or read a file back through an error.
+TEST(Server, AClientStaysInsideTheDaemonsFolders) {
+  namespace fs = std::filesystem;
+  const fs::path secret = fs::temp_directory_path() / "insitu_server_test_secret.yaml";
+  std::ofstream(secret) << "job: scan\nsecret_line: hunter2\n";
+  Server server(Loopback());
+  ASSERT_TRUE(server.Start().ok());
+  Client c(server.port());
+  const auto refused = [&](const std::string& job, const std::string& set) {
+    const auto reply = c.Call(R"({"id": 1, "cmd": "run", "job": )" + job +
+                              (set.empty() ? "" : R"(, "set": )" + set) + "}");
+    EXPECT_EQ(reply["ok"], false) << reply.dump();
+    const std::string text = reply.dump();
+    EXPECT_EQ(text.find("hunter2"), std::string::npos) << text;  // never a file's contents
+    return reply["error"]["message"].get<std::string>();
+  };
+  EXPECT_NE(refused("\"" + secret.string() + "\"", "").find("absolute path"), std::string::npos);
+  EXPECT_NE(refused(R"("config/../../../../tmp/insitu_server_test_secret.yaml")", "").find(".."),
+            std::string::npos);
+  const fs::path planted = fs::temp_directory_path() / "insitu_server_test_planted.yaml";
+  fs::remove(planted);
+  EXPECT_NE(refused(R"("config/jobs/calibrate.yaml")",
+                    R"({"output.calibration": ")" + planted.string() + R"("})")
+                .find("names a file"),
+            std::string::npos);
+  EXPECT_FALSE(fs::exists(planted));
+  EXPECT_TRUE(Pong(c));
+}
+
 TEST(Server, AWrongTokenClosesTheConnection) {
   ServerOptions o = Loopback();
   o.token = "s3cret-token";
@@ -121,10 +154,141 @@ TEST(Server, AHundredClientsAtOnce) {
   EXPECT_EQ(answered.load(), 1000);
 }
 
+// A connection from a chosen source address: all of 127.0.0.0/8 is this host, so loopback
+// plays several peers. Blocking, reads give up after a timeout (a hung daemon fails the test).
+class Peer {
+ public:
+  Peer(asio::io_context& io, const char* from, int port) : socket_(io) {
+    socket_.open(asio::ip::tcp::v4());
+    socket_.bind({asio::ip::make_address(from), 0});
+    socket_.connect({asio::ip::make_address("127.0.0.1"), static_cast<unsigned short>(port)});
+  }
+  // The next line; "" on close or after timeout_ms.
+  std::string ReadLine(int timeout_ms = 10000) {
+    for (;;) {
+      const auto begin = asio::buffers_begin(buffer_.data());
+      const auto end = asio::buffers_end(buffer_.data());
+      const auto nl = std::find(begin, end, '\n');
+      if (nl != end) {
+        std::string line(begin, nl);
+        buffer_.consume(line.size() + 1);
+        return line;
+      }
+      pollfd p{socket_.native_handle(), POLLIN, 0};
+      if (poll(&p, 1, timeout_ms) <= 0) return "";
+      asio::error_code ec;
+      const size_t n = socket_.read_some(buffer_.prepare(4096), ec);
+      if (ec || n == 0) return "";
+      buffer_.commit(n);
+    }
+  }
+  nlohmann::json Call(const std::string& line) {
+    asio::error_code ec;
+    asio::write(socket_, asio::buffer(line + "\n"), ec);
+    return nlohmann::json::parse(ReadLine(), nullptr, false);
+  }
+  // The error code of the line the daemon sent before closing; "" if it sent none or kept the
+  // connection open.
+  std::string ClosedWith(int timeout_ms = 10000) {
+    const auto line = nlohmann::json::parse(ReadLine(timeout_ms), nullptr, false);
+    if (!line.is_object() || !ReadLine(timeout_ms).empty()) return "";
+    return line["error"].value("code", "");
+  }
+
+ private:
+  asio::ip::tcp::socket socket_;
+  asio::streambuf buffer_;
+};
+
+// The tester's attack: with a token set, one peer opens 300 connections and never sends a byte.
+TEST(Server, AFloodWithoutTheTokenLocksNoOperatorOut) {
+  ServerOptions o = Loopback();
+  o.token = "s3cret-token";
+  o.auth_timeout_s = 2.0;  // 5 s by default; the same code, a shorter test
+  ASSERT_EQ(o.max_unauthenticated, 16);
+  ASSERT_EQ(o.max_clients_per_address, 32);
+  ASSERT_EQ(o.max_clients, 256);
+  Server server(o);
+  ASSERT_TRUE(server.Start().ok());
+  const int port = server.port();
+  const std::string auth = R"({"id": 1, "cmd": "auth", "token": "s3cret-token"})";
+  const std::string ping = R"({"id": "p", "cmd": "ping"})";
+  using Clock = std::chrono::steady_clock;
+  const auto seconds_since = [](Clock::time_point t) {
+    return std::chrono::duration<double>(Clock::now() - t).count();
+  };
+  asio::io_context io;
+
+  // An operator has connected and not yet authenticated when the flood comes.
+  Peer early(io, "127.0.0.1", port);
+  const auto flood_start = Clock::now();
+  std::vector<std::unique_ptr<Peer>> flood;
+  for (int k = 0; k < 300; ++k) flood.push_back(std::make_unique<Peer>(io, "127.0.0.2", port));
+  // 15 take the rest of the pool; the other 285 are refused at once (their line written, then
+  // closed), long before the auth deadline.
+  while (server.connected_clients() > 16 && seconds_since(flood_start) < 10) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_EQ(server.connected_clients(), 16);
+  ASSERT_LT(seconds_since(flood_start), o.auth_timeout_s);
+
+  // While the flood holds the pool: a new connection is turned away at once...
+  Peer turned_away(io, "127.0.0.1", port);
+  EXPECT_EQ(turned_away.ClosedWith(), "too_many_clients");
+  // ...but the operator's auth takes it out of the pool into one of the 256 slots, which no
+  // connection without the token can hold, and its ping is answered.
+  EXPECT_EQ(early.Call(auth)["role"], "operator");
+  EXPECT_EQ(early.Call(ping)["pong"], true);
+  // The place it left is free for the next operator.
+  Peer late(io, "127.0.0.1", port);
+  EXPECT_EQ(late.Call(auth)["role"], "operator");
+  EXPECT_EQ(late.Call(ping)["pong"], true);
+  EXPECT_LT(seconds_since(flood_start), o.auth_timeout_s);  // all this with the flood held
+
+  // The auth deadline closes the 15 held, each with its error line; nothing holds on.
+  int refused = 0, timed_out = 0;
+  for (auto& f : flood) {
+    const std::string code = f->ClosedWith();
+    refused += code == "too_many_clients";
+    timed_out += code == "auth_timeout";
+  }
+  EXPECT_EQ(refused, 285);
+  EXPECT_EQ(timed_out, 15);
+  // The deadline counts from the accept, plus the loop's 10 ms steps: well within 1 s more.
+  EXPECT_LT(seconds_since(flood_start), o.auth_timeout_s + 1.0);
+  EXPECT_EQ(early.Call(ping)["pong"], true);  // authenticated: no deadline
+  EXPECT_EQ(late.Call(ping)["pong"], true);
+  Peer after(io, "127.0.0.2", port);  // the pool is free again, for the flooder too
+  EXPECT_EQ(after.Call(auth)["role"], "operator");
+
+  // One address holds 32 connections at most, authenticated ones included.
+  std::vector<std::unique_ptr<Peer>> many;
+  for (int k = 0; k < 32; ++k) {
+    many.push_back(std::make_unique<Peer>(io, "127.0.0.3", port));
+    ASSERT_EQ(many.back()->Call(auth)["role"], "operator") << k;
+  }
+  Peer one_more(io, "127.0.0.3", port);
+  EXPECT_EQ(one_more.ClosedWith(), "too_many_clients");
+  Peer elsewhere(io, "127.0.0.4", port);
+  EXPECT_EQ(elsewhere.Call(auth)["role"], "operator");
+  EXPECT_EQ(elsewhere.Call(ping)["pong"], true);
+}
+
 TEST(Server, BadOptionsAndABusyPortAreNamed) {
   ServerOptions bad = Loopback();
   bad.bind_address = "not-an-address";
   EXPECT_EQ(Server(bad).Start().code(), StatusCode::kInvalidArgument);
+  for (const auto& [set, key] : std::vector<std::pair<void (*)(ServerOptions*), std::string>>{
+           {[](ServerOptions* o) { o->auth_timeout_s = 0; }, "auth_timeout_s"},
+           {[](ServerOptions* o) { o->max_unauthenticated = 0; }, "max_unauthenticated"},
+           {[](ServerOptions* o) { o->max_clients_per_address = 0; }, "max_clients_per_address"},
+       }) {
+    ServerOptions o = Loopback();
+    set(&o);
+    const Status st = o.Validate();
+    EXPECT_EQ(st.code(), StatusCode::kInvalidArgument) << key;
+    EXPECT_EQ(st.message().rfind(key, 0), 0u) << st.message();
+  }
   Server first(Loopback());
   ASSERT_TRUE(first.Start().ok());
   ServerOptions same = Loopback();

@@ -168,6 +168,9 @@ TEST(Insitud, ABadConfigIsOneLineAndExit2) {
            "version: 1\nport: 0\nmachine:\n  backend: sim\n  calibration: calib/none.yaml\n",
            "version: 1\nport: 0\nqueue: true\nmax_queued: 0\n",
            "version: 1\nport: 0\ntoken: same\nadmin_token: same\n",
+           "version: 1\nport: 0\nauth_timeout_s: 0\n",
+           "version: 1\nport: 0\nmax_unauthenticated: 0\n",
+           "version: 1\nport: 0\nmax_clients_per_address: -1\n",
        }) {
     const Daemon d = Start(config);
     EXPECT_EQ(d.port, 0) << config;

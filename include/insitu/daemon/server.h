@@ -15,6 +15,16 @@
 //
 // Roles: with `admin_token` set, only a client that authenticated with it may `shutdown`; with
 // no token at all every client may (a loopback-only daemon). asio stays in server.cc.
+//
+// Limits: with a `token`, a connection is unauthenticated until its `auth` succeeds. At most
+// `max_unauthenticated` connections wait so (a further one is closed at once with
+// `too_many_clients`), each for at most `auth_timeout_s` from its accept (then closed with
+// `auth_timeout`), and they never take one of the `max_clients` slots: a successful `auth`
+// moves the connection out of that pool into a slot (refused with `too_many_clients` when all
+// are taken). Without a token every connection takes a slot at once. With a token or an
+// admin token, one peer address holds at most `max_clients_per_address` connections,
+// authenticated or not; a daemon with no token at all trusts its peers (any may shut it down)
+// and has only `max_clients`.
 #pragma once
 
 #include <cstddef>
@@ -36,6 +46,12 @@ struct ServerOptions {
   size_t max_line_bytes = kDefaultMaxLineBytes;
   int max_clients = 256;          // beyond: the connection is closed with an error line
   double idle_timeout_s = 300.0;  // a client silent this long (or stalled mid-line) is closed
+  // With a token: the time from accept to a successful `auth` (then closed with an error
+  // line), and how many connections may wait for theirs, outside the max_clients slots.
+  double auth_timeout_s = 5.0;
+  int max_unauthenticated = 16;
+  // Connections from one peer IP address, authenticated or not (with a token or admin token).
+  int max_clients_per_address = 32;
   std::string results_dir = "insitu-results";
   std::string jobs_dir = ".";  // relative job paths and inline jobs' relative paths
   // The cell this daemon drives, as "machine.key=value" overrides applied to every job after
