@@ -3,6 +3,8 @@
 #include <filesystem>
 #include <system_error>
 
+#include <nlohmann/json.hpp>
+
 namespace insitu::daemon {
 namespace {
 
@@ -28,11 +30,13 @@ Result<std::string> JobPathInside(const std::string& jobs_dir, const std::string
                              "' leaves the daemon's jobs folder (a '..' in it)");
     }
   }
+  if (requested.find('\0') != std::string::npos) return InvalidArgument("job: a NUL in the path");
   // Links followed: a link inside the folder that points out of it is refused too.
-  std::error_code ec;
-  const fs::path root = fs::weakly_canonical(fs::absolute(jobs_dir), ec);
-  const fs::path full = fs::weakly_canonical(fs::absolute(fs::path(jobs_dir) / p), ec);
-  if (ec) return InvalidArgument("job: '" + requested + "' cannot be resolved");
+  std::error_code ec_root, ec_full;
+  const fs::path root = fs::weakly_canonical(fs::absolute(jobs_dir), ec_root);
+  const fs::path full = fs::weakly_canonical(fs::absolute(fs::path(jobs_dir) / p), ec_full);
+  if (ec_root || root.empty()) return InvalidArgument("the daemon's jobs folder cannot be resolved");
+  if (ec_full) return InvalidArgument("job: '" + requested + "' cannot be resolved");
   const auto [end, rest] = std::mismatch(root.begin(), root.end(), full.begin(), full.end());
   if (end != root.end()) {
     return InvalidArgument("job: '" + requested + "' leaves the daemon's jobs folder (a link)");
@@ -40,19 +44,68 @@ Result<std::string> JobPathInside(const std::string& jobs_dir, const std::string
   return full.string();
 }
 
+bool NamesAFile(const std::string& key) {
+  const size_t dot = key.rfind('.');
+  const std::string last = dot == std::string::npos ? key : key.substr(dot + 1);
+  return last == "file" || EndsWith(last, "_file") || EndsWith(last, "_dir") ||
+         last == "calibration" || last == "correction" || last == "model_extension" ||
+         last == "baseline" || last == "world" || last == "base";
+}
+
+// Keys a client may not change at all: where a job writes (output), whether it writes beside
+// the cell's calibration (record_baseline), and what kind of job it is.
+bool Forbidden(const std::string& key) {
+  const size_t dot = key.rfind('.');
+  const std::string last = dot == std::string::npos ? key : key.substr(dot + 1);
+  return key == "output" || key.rfind("output.", 0) == 0 || last == "record_baseline" ||
+         key == "job";
+}
+
 Status CheckSetKeys(const std::vector<std::string>& sets) {
   for (const std::string& s : sets) {
-    const std::string key = s.substr(0, s.find('='));
-    const size_t dot = key.rfind('.');
-    const std::string last = dot == std::string::npos ? key : key.substr(dot + 1);
-    const bool names_file = last == "file" || EndsWith(last, "_file") || EndsWith(last, "_dir") ||
-                            last == "calibration" || last == "correction" ||
-                            last == "model_extension" || last == "baseline" || last == "world" ||
-                            last == "base" || key == "output" || key.rfind("output.", 0) == 0;
-    if (names_file) {
+    const size_t eq = s.find('=');
+    const std::string key = s.substr(0, eq);
+    const std::string value = eq == std::string::npos ? "" : s.substr(eq + 1);
+    if (NamesAFile(key) || Forbidden(key)) {
       return InvalidArgument("set: '" + key +
-                             "' names a file; over the daemon a job reads the files its job "
-                             "file names and writes under the daemon's results folder");
+                             "' names a file or where a job writes; over the daemon a job reads "
+                             "the files its job file names and writes under the results folder");
+    }
+    // A value is a number, a word or a list of them: a map (or text that reads as one) would
+    // replace a whole section, file keys and all.
+    const size_t start = value.find_first_not_of(" \t");
+    const bool structured = start != std::string::npos &&
+                            (value[start] == '{' || value.compare(start, 2, "- ") == 0 ||
+                             value.find(": ") != std::string::npos ||
+                             value.find('\n') != std::string::npos ||
+                             (value[start] == '[' && value.find('{') != std::string::npos));
+    if (structured) {
+      return InvalidArgument("set: '" + key +
+                             "' must be a number, a word or a list of them, not a section");
+    }
+  }
+  return Status::Ok();
+}
+
+Status CheckInlineJob(const nlohmann::json& job, const std::string& jobs_dir,
+                      const std::string& where) {
+  if (job.is_object()) {
+    for (auto it = job.begin(); it != job.end(); ++it) {
+      const std::string key = where.empty() ? it.key() : where + "." + it.key();
+      if (Forbidden(key) && key != "job") {
+        return InvalidArgument("job." + key + ": an inline job may not say where it writes");
+      }
+      if (NamesAFile(it.key()) && it.value().is_string()) {
+        auto inside = JobPathInside(jobs_dir, it.value().get<std::string>());
+        if (!inside.ok()) {
+          return InvalidArgument("job." + key + ": " + inside.status().message().substr(5));
+        }
+      }
+      INSITU_RETURN_IF_ERROR(CheckInlineJob(it.value(), jobs_dir, key));
+    }
+  } else if (job.is_array()) {
+    for (size_t i = 0; i < job.size(); ++i) {
+      INSITU_RETURN_IF_ERROR(CheckInlineJob(job[i], jobs_dir, where + "[" + std::to_string(i) + "]"));
     }
   }
   return Status::Ok();

@@ -76,6 +76,9 @@ struct Server::Impl {
   int unauthenticated = 0;  // in the pool: a token is configured and their auth has not come
   int authenticated = 0;    // in one of the max_clients slots
   std::map<std::string, int> per_address;  // with a token or admin token: peer IP -> connections
+  // With a token: peer IP -> its connections waiting to authenticate. One address may hold a
+  // quarter of the pool at most, so a flood from it cannot keep others from authenticating.
+  std::map<std::string, int> unauthenticated_per_address;
   StateMachine state;
   int bound_port = 0;
   std::unique_ptr<ResultsStore> store;
@@ -137,11 +140,18 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
       }
     }
     if (!o.token.empty()) {
+      const int share = std::max(1, o.max_unauthenticated / 4);
+      const auto mine = server_->unauthenticated_per_address.find(address_);
+      if (mine != server_->unauthenticated_per_address.end() && mine->second >= share) {
+        return "one address may wait to authenticate on " + std::to_string(share) +
+               " connections at most";
+      }
       if (server_->unauthenticated >= o.max_unauthenticated) {
         return std::to_string(o.max_unauthenticated) +
                " connections are already waiting to authenticate; try again shortly";
       }
       ++server_->unauthenticated;
+      ++server_->unauthenticated_per_address[address_];
       slot_ = Slot::kUnauthenticated;
     } else {
       if (server_->authenticated >= o.max_clients) return TooManyClients();
@@ -214,14 +224,25 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
     if (slot_ != Slot::kUnauthenticated) return true;
     if (server_->authenticated >= server_->options.max_clients) return false;
     --server_->unauthenticated;
+    LeaveUnauthenticated();
     ++server_->authenticated;
     slot_ = Slot::kClient;
     auth_timer_.cancel();
     return true;
   }
 
+  void LeaveUnauthenticated() {
+    const auto it = server_->unauthenticated_per_address.find(address_);
+    if (it != server_->unauthenticated_per_address.end() && --it->second == 0) {
+      server_->unauthenticated_per_address.erase(it);
+    }
+  }
+
   void Release() {
-    if (slot_ == Slot::kUnauthenticated) --server_->unauthenticated;
+    if (slot_ == Slot::kUnauthenticated) {
+      --server_->unauthenticated;
+      LeaveUnauthenticated();
+    }
     if (slot_ == Slot::kClient) --server_->authenticated;
     slot_ = Slot::kNone;
     if (address_counted_) {
@@ -471,7 +492,10 @@ std::string Server::Impl::Run(const Request& r) {
   sets.insert(sets.end(), options.machine_sets.begin(), options.machine_sets.end());
   const nlohmann::json& spec = r.body["job"];
   const auto load = [&]() -> Result<job::LoadedJob> {
-    if (!spec.is_string()) return job::LoadJobText(spec.dump(), "<run request>", options.jobs_dir, sets);
+    if (!spec.is_string()) {
+      INSITU_RETURN_IF_ERROR(CheckInlineJob(spec, options.jobs_dir));
+      return job::LoadJobText(spec.dump(), "<run request>", options.jobs_dir, sets);
+    }
     // A job file inside the jobs folder only.
     INSITU_ASSIGN_OR_RETURN(const std::string path,
                             JobPathInside(options.jobs_dir, spec.get<std::string>()));

@@ -270,6 +270,9 @@ Result<Report> RunJobOfKind(const LoadedJob& job, const RunOptions& options) {
 }  // namespace
 
 Result<Report> RunJob(const LoadedJob& job, const RunOptions& options) {
+  if (options.cancel != nullptr && options.cancel->load()) {
+    return Status(StatusCode::kCancelled, "cancelled before it started");
+  }
   Result<Report> report = RunJobOfKind(job, options);
   // A job stopped by its cancel flag ends cancelled whatever phase it was in (a scan between
   // lines, a list the head aborted, a loop of profiles): the phase saw it as its own failure.

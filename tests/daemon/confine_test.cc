@@ -4,8 +4,13 @@
 
 #include <filesystem>
 #include <fstream>
+#include <string>
+
+#include <unistd.h>
 
 #include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
 
 namespace insitu::daemon {
 namespace {
@@ -13,7 +18,8 @@ namespace {
 namespace fs = std::filesystem;
 
 TEST(Confine, JobPathsStayInTheJobsFolder) {
-  const fs::path dir = fs::temp_directory_path() / "insitu_confine_test";
+  const fs::path dir =
+      fs::temp_directory_path() / ("insitu_confine_test_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   fs::create_directories(dir / "jobs" / "sub");
   std::ofstream(dir / "jobs" / "sub" / "scan.yaml") << "job: scan\n";
@@ -39,13 +45,33 @@ TEST(Confine, SetNeverRedirectsAFile) {
   EXPECT_TRUE(CheckSetKeys({"scan.line_spacing_mm=0.5", "world.part.position_mm=[1,2]",
                             "camera.exposure_ms=20", "profiler.mount=[0,0,0,0,0,0]"})
                   .ok());
+  // Negative numbers and lists of numbers are values, not sections.
+  EXPECT_TRUE(CheckSetKeys({"scan.x_start_mm=-3.0", "world.part.position_mm=[-1.5,2]"}).ok());
   for (const char* bad :
-       {"output.calibration=/etc/x", "machine.calibration=/tmp/c.yaml", "design.file=/etc/passwd",
+       {"diagnosis={\"baseline\":\"/any\",\"record_baseline\":true}",
+        "diagnosis.record_baseline=true", "job=calibrate", "head={correction: /etc/t.csv}",
+        "items=[{\"pattern\": {\"file\": \"/etc/x\"}}]", "profiler=- mount_file: /x",
+        "output.calibration=/etc/x", "machine.calibration=/tmp/c.yaml", "design.file=/etc/passwd",
         "profiler.mount_file=/tmp/m.yaml", "head.correction=/tmp/t.csv", "world=/tmp/w.yaml",
         "output=/tmp", "diagnosis.baseline=/tmp/b.csv", "head.model_extension=/tmp/e.yaml"}) {
     const Status s = CheckSetKeys({bad});
     EXPECT_FALSE(s.ok()) << bad;
-    EXPECT_NE(s.message().find("names a file"), std::string::npos) << s.message();
+    EXPECT_NE(s.message().find("set: '"), std::string::npos) << s.message();
+  }
+}
+
+// An inline job by the same rules, at any depth.
+TEST(Confine, AnInlineJobNamesNoFileOutsideAndNoOutput) {
+  const std::string jobs = INSITU_SOURCE_DIR;
+  EXPECT_TRUE(CheckInlineJob(nlohmann::json::parse(R"({"job": "scan", "world": "config/worlds/default.yaml",
+      "machine": {"calibration": "calib/as_designed.yaml"}})"), jobs).ok());
+  for (const char* bad :
+       {R"({"job": "calibrate", "output": {"calibration": "/var/lib/insitu/x"}})",
+        R"({"job": "diagnose_machine", "diagnosis": {"record_baseline": true}})",
+        R"({"job": "scan", "world": "/etc/insitu/w.yaml"})",
+        R"({"job": "mark", "items": [{"pattern": {"kind": "svg", "file": "../../etc/x.svg"}}]})"}) {
+    const Status s = CheckInlineJob(nlohmann::json::parse(bad), jobs);
+    EXPECT_FALSE(s.ok()) << bad;
   }
 }
 

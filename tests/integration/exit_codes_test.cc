@@ -6,6 +6,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -53,21 +54,28 @@ TEST(ExitCodes, DoneFailedBadInputInterrupted) {
             0);
   // 1: the profiler stops sending while the block is scanned.
   EXPECT_EQ(Insitu({"run", Job("calibrate_profiler.yaml"), "--out", out, "--set",
-                    "world.faults.profiler_stop_at_profile=3"}),
+                    "world.faults.profiler_stop_at_profile=3", "--set",
+                    "output.mount_file=" + (Dir() / "mount_stopped.yaml").string()}),
             1);
-  // 2: a key the job does not have, a job file that is not there, a command line it refuses.
+  // 2: a value out of its range, a job file that is not there, a command line it refuses.
   EXPECT_EQ(Insitu({"run", Job("calibrate_profiler.yaml"), "--out", out, "--set",
                     "profiler.block.base_mm=-1"}),
             2);
   EXPECT_EQ(Insitu({"run", (Dir() / "no_such_job.yaml").string()}), 2);
   EXPECT_EQ(Insitu({"run"}), 2);
-  // 130: the calibrate job (about 20 s of board views) interrupted two seconds in.
+  // 130: the calibrate job (about 20 s of board views) interrupted two seconds in (the handler
+  // is set before the job file loads, so an early interrupt stops it at its first step).
+  const fs::path previous = Dir() / "machine.yaml";
+  std::ofstream(previous) << "# the cell's previous calibration\n";
   EXPECT_EQ(Insitu({"run", Job("calibrate.yaml"), "--out", (Dir() / "calibrate").string(), "--set",
-                    "output.calibration=" + (Dir() / "machine.yaml").string()},
+                    "output.calibration=" + previous.string()},
                    2.0),
             130);
-  // Interrupted, it kept the previous calibration: none was written.
-  EXPECT_FALSE(fs::exists(Dir() / "machine.yaml"));
+  // Interrupted, it kept the previous calibration as it was.
+  std::ifstream kept(previous);
+  std::string line;
+  std::getline(kept, line);
+  EXPECT_EQ(line, "# the cell's previous calibration");
 }
 
 }  // namespace

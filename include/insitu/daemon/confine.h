@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "insitu/core/status.h"
 
 namespace insitu::daemon {
@@ -19,6 +21,14 @@ Result<std::string> JobPathInside(const std::string& jobs_dir, const std::string
 // Refuses a `set` key that names a file: its last part `file`, ending in `_file` or `_dir`, or
 // one of calibration, correction, model_extension, baseline, world, base; or under output.
 // Errors: invalid_argument naming the key.
+// Also refused: output.*, record_baseline and job (where and whether a job writes, its kind),
+// and a value that is a section (a map, or text that reads as one) rather than a number, a word
+// or a list of them.
 Status CheckSetKeys(const std::vector<std::string>& sets);
+
+// An inline job (a run request's JSON) by the same rules, at any depth: a file key's value a
+// path inside `jobs_dir`, nothing under output, no record_baseline. Errors name the key.
+Status CheckInlineJob(const nlohmann::json& job, const std::string& jobs_dir,
+                      const std::string& where = "");
 
 }  // namespace insitu::daemon
