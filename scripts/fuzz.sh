@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets with clang (when clang++ is installed) into build-fuzz/ and runs
 # each for a short fixed time from its seed corpus: the protocol line parser, job files, the
-# config reader and the galvo field CSV reader. A crash fails the script and leaves the
+# config reader, the galvo field CSV reader and a run request's set (insitud's confinement). A crash fails the script and leaves the
 # reproducer (crash-*) in build-fuzz/fuzz/. Longer runs: INSITU_FUZZ_SECONDS=600 scripts/fuzz.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -10,7 +10,7 @@ if ! command -v clang++ >/dev/null 2>&1; then
   exit 0
 fi
 seconds="${INSITU_FUZZ_SECONDS:-15}"
-targets=(protocol job_file config field_csv)
+targets=(protocol job_file config field_csv run_set)
 generator=()
 command -v ninja >/dev/null 2>&1 && generator=(-G Ninja)
 if [ ! -f build-fuzz/CMakeCache.txt ]; then

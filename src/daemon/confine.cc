@@ -54,7 +54,7 @@ bool NamesAFile(const std::string& key) {
 
 // Keys a client may not change at all: where a job writes (output), whether it writes beside
 // the cell's calibration (record_baseline), and what kind of job it is.
-bool Forbidden(const std::string& key) {
+bool ForbiddenSetKey(const std::string& key) {
   const size_t dot = key.rfind('.');
   const std::string last = dot == std::string::npos ? key : key.substr(dot + 1);
   return key == "output" || key.rfind("output.", 0) == 0 || last == "record_baseline" ||
@@ -66,7 +66,7 @@ Status CheckSetKeys(const std::vector<std::string>& sets) {
     const size_t eq = s.find('=');
     const std::string key = s.substr(0, eq);
     const std::string value = eq == std::string::npos ? "" : s.substr(eq + 1);
-    if (NamesAFile(key) || Forbidden(key)) {
+    if (NamesAFile(key) || ForbiddenSetKey(key)) {
       return InvalidArgument("set: '" + key +
                              "' names a file or where a job writes; over the daemon a job reads "
                              "the files its job file names and writes under the results folder");
@@ -92,7 +92,7 @@ Status CheckInlineJob(const nlohmann::json& job, const std::string& jobs_dir,
   if (job.is_object()) {
     for (auto it = job.begin(); it != job.end(); ++it) {
       const std::string key = where.empty() ? it.key() : where + "." + it.key();
-      if (Forbidden(key) && key != "job") {
+      if (ForbiddenSetKey(key) && key != "job") {
         return InvalidArgument("job." + key + ": an inline job may not say where it writes");
       }
       if (NamesAFile(it.key()) && it.value().is_string()) {

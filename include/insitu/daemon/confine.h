@@ -26,6 +26,10 @@ Result<std::string> JobPathInside(const std::string& jobs_dir, const std::string
 // or a list of them.
 Status CheckSetKeys(const std::vector<std::string>& sets);
 
+// The rules themselves: a key whose last part names a file; a key a client may not set at all.
+bool NamesAFile(const std::string& dotted_key);
+bool ForbiddenSetKey(const std::string& dotted_key);
+
 // An inline job (a run request's JSON) by the same rules, at any depth: a file key's value a
 // path inside `jobs_dir`, nothing under output, no record_baseline. Errors name the key.
 Status CheckInlineJob(const nlohmann::json& job, const std::string& jobs_dir,
