@@ -8,17 +8,12 @@
 #include <Eigen/Geometry>
 
 #include "insitu/job/job_file.h"
+#include "job/format.h"
 
 namespace insitu::job {
 namespace {
 
 constexpr double kDeg = M_PI / 180.0;
-
-std::string Fmt(const char* format, double a, double b = 0.0, double c = 0.0) {
-  char buf[160];
-  std::snprintf(buf, sizeof buf, format, a, b, c);
-  return buf;
-}
 
 bool Cancelled(const std::atomic<bool>* cancel) { return cancel != nullptr && cancel->load(); }
 

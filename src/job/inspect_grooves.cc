@@ -17,6 +17,7 @@
 #include "insitu/job/plot.h"
 #include "insitu/pattern/mark_plan.h"
 #include "insitu/pattern/vector.h"
+#include "job/format.h"
 #include "job/groove_cell.h"
 #include "job/head_list.h"
 #include "job/progress.h"
@@ -27,12 +28,6 @@ namespace {
 
 namespace fs = std::filesystem;
 constexpr double kDeg = M_PI / 180.0;
-
-std::string Fmt(const char* format, double a, double b = 0.0, double c = 0.0) {
-  char buf[200];
-  std::snprintf(buf, sizeof buf, format, a, b, c);
-  return buf;
-}
 
 struct GrooveJobSpec {
   std::string design_file;  // resolved

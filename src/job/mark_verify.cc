@@ -13,18 +13,13 @@
 #include "insitu/core/log.h"
 #include "insitu/vision/image.h"
 #include "insitu/vision/mark_inspection.h"
+#include "job/format.h"
 
 namespace insitu::job {
 namespace {
 
 vision::ImageView View(const Frame& f) {
   return {f.bytes.data(), f.width, f.height, f.stride_bytes(), f.bit_depth};
-}
-
-std::string Fmt(const char* format, double a, double b = 0.0, double c = 0.0) {
-  char buf[256];
-  std::snprintf(buf, sizeof buf, format, a, b, c);
-  return buf;
 }
 
 // Aims the head (every beam off) at a point: a list of one jump.
