@@ -7,10 +7,15 @@
 // Exit codes: 0 done, 1 device or job failure while running (the report says what), 2 bad input
 // (command line, job file, --set, calibration, pattern or data file), 130 interrupted.
 #include <CLI/CLI.hpp>
+#include <poll.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <atomic>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -52,6 +57,39 @@ int ExitCodeFor(const insitu::Status& st) {
   }
 }
 
+// The operator of a cell with `machine.operator: person`, at this terminal: the request on
+// stderr, Enter when done, "abort" to stop the job. Ctrl-C interrupts the wait as it does a job.
+insitu::Status AskAtConsole(const std::string& request) {
+  using insitu::Status;
+  using insitu::StatusCode;
+  std::fprintf(stderr, "\noperator: %s\n  Enter when done, or type abort: ", request.c_str());
+  std::fflush(stderr);
+  std::string line;
+  while (true) {
+    if (g_cancel.load()) return Status(StatusCode::kCancelled, "interrupted at the operator's prompt");
+    pollfd in{STDIN_FILENO, POLLIN, 0};
+    const int ready = poll(&in, 1, 200);
+    if (ready < 0 && errno == EINTR) continue;
+    if (ready < 0) return insitu::DeviceError(std::string("reading the terminal: ") + std::strerror(errno));
+    if (ready == 0) continue;
+    char c = 0;
+    const ssize_t n = read(STDIN_FILENO, &c, 1);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      return Status(StatusCode::kCancelled,
+                    "no operator answered (standard input closed) to: " + request);
+    }
+    if (c == '\n') break;
+    line += c;
+  }
+  line.erase(0, line.find_first_not_of(" \t\r"));
+  line.erase(line.find_last_not_of(" \t\r") + 1);
+  if (line == "abort" || line == "a") {
+    return Status(StatusCode::kCancelled, "the operator aborted at: " + request);
+  }
+  return Status::Ok();
+}
+
 int Run(const std::string& job_path, const std::string& out_dir,
         const std::vector<std::string>& sets) {
   auto job = insitu::job::LoadJobFile(job_path, sets);
@@ -63,6 +101,7 @@ int Run(const std::string& job_path, const std::string& out_dir,
   options.out_dir =
       out_dir.empty() ? "insitu-out/" + std::filesystem::path(job_path).stem().string() : out_dir;
   options.cancel = &g_cancel;
+  options.ask_person = AskAtConsole;
   auto report = insitu::job::RunJob(*job, options);
   if (!report.ok()) {
     std::fprintf(stderr, "insitu: %s\n", report.status().message().c_str());

@@ -19,7 +19,7 @@
 #include "insitu/core/config.h"
 #include "insitu/core/log.h"
 #include "insitu/daemon/server.h"
-#include "insitu/hw/machine.h"
+#include "insitu/hw/cell.h"
 #include "insitu/job/job_file.h"
 
 #ifndef INSITU_VERSION
@@ -86,7 +86,7 @@ insitu::Result<DaemonConfig> ReadConfig(const std::string& path) {
   const std::vector<std::string> known{
       "version",        "bind_address",        "port",        "token",
       "token_file",     "admin_token",         "admin_token_file",
-      "results_dir",    "jobs_dir",            "machine",     "queue",
+      "results_dir",    "jobs_dir",            "read_roots",  "machine",     "queue",
       "max_queued",     "max_line_bytes",      "max_clients", "idle_timeout_s",
       "auth_timeout_s", "max_unauthenticated", "max_clients_per_address",
       "log_level"};
@@ -110,6 +110,18 @@ insitu::Result<DaemonConfig> ReadConfig(const std::string& path) {
   r.Read("admin_token_file", &admin_token_file);
   r.Read("results_dir", &c.server.results_dir);
   r.Read("jobs_dir", &c.server.jobs_dir);
+  // The folders jobs may read from: a list of paths.
+  const insitu::ConfigNode roots = root.Child("read_roots");
+  if (roots.IsDefined()) {
+    r.Skip("read_roots");
+    bool listed = roots.IsSequence();
+    for (size_t i = 0; listed && i < roots.size(); ++i) {
+      auto folder_text = roots.At(i).AsString();
+      listed = roots.At(i).IsScalar() && folder_text.ok() && !folder_text->empty();
+      if (listed) c.server.read_roots.push_back(*folder_text);
+    }
+    if (!listed) r.Fail("read_roots", "expected a list of folders");
+  }
   insitu::job::MachineSpec machine;
   const bool has_machine = r.Has("machine");
   const std::string folder = std::filesystem::absolute(path).parent_path().string();
@@ -145,6 +157,9 @@ insitu::Result<DaemonConfig> ReadConfig(const std::string& path) {
     if (!calibration.ok()) {
       return calibration.status().Prefixed(path + ": machine.calibration");
     }
+    // The daemon's cell replaces a job's machine: section whole (machine={} first): a job
+    // cannot add a device to it, not even a simulated one.
+    c.server.machine_sets.push_back("machine={}");
     Flatten(root.Child("machine"), "machine", &c.server.machine_sets);
     for (std::string& s : c.server.machine_sets) {
       // Files named relative to this config resolve from its folder, as the jobs' do theirs.
@@ -182,17 +197,15 @@ int main(int argc, char** argv) {
     // Real devices the machine names are opened once now: a cell whose camera or board cannot
     // be opened does not start serving (devices served by the simulator come up per job).
     const insitu::hw::MachineConfig& m = config->machine;
-    const bool real_camera = m.camera == "aravis" && m.aravis.simulate_on.empty();
-    const bool real_board = m.scanner == "lmc" && m.lmc.transport == "usb";
-    if (real_camera || real_board) {
+    if (insitu::hw::IsRealCell(m)) {
       insitu::hw::MachineConfig probe = m;
-      if (!real_camera) probe.camera.clear();
-      if (!real_board) probe.scanner.clear();
-      insitu::hw::Machine devices;
-      const insitu::Status opened = insitu::hw::ReplaceDevices(probe, nullptr, &devices);
+      for (insitu::hw::Role r : insitu::hw::kRoles) {
+        if (!insitu::hw::IsRealDevice(m, r)) insitu::hw::DeviceField(probe, r) = "none";
+      }
+      const auto opened = insitu::hw::CreateMachine(probe);
       if (!opened.ok()) {
         std::fprintf(stderr, "insitud: %s: machine: %s\n", config_path.c_str(),
-                     opened.message().c_str());
+                     opened.status().message().c_str());
         return 1;
       }
     }

@@ -1,15 +1,14 @@
 #include "insitu/calib/calibration.h"
 
 #include <cmath>
-#include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <sstream>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
 
 #include "insitu/core/config.h"
+#include "insitu/core/file.h"
 #include "insitu/optics/newton.h"
 
 namespace insitu::calib {
@@ -376,22 +375,11 @@ Status SaveCalibration(const CalibrationSet& set, const std::string& path) {
       os << "\n";
     }
   }
-  const std::string tmp = path + ".tmp";
-  {
-    const std::filesystem::path parent = std::filesystem::path(path).parent_path();
-    std::error_code ec;
-    if (!parent.empty()) std::filesystem::create_directories(parent, ec);
-    if (ec) return DeviceError("cannot create directory " + parent.string() + ": " + ec.message());
-    std::ofstream f(tmp, std::ios::trunc);
-    if (!f) return DeviceError("cannot write " + tmp);
-    f << os.str();
-    if (!f.good()) return DeviceError("write failed: " + tmp);
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    return DeviceError("cannot replace " + path);
-  }
-  return Status::Ok();
+  const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+  std::error_code ec;
+  if (!parent.empty()) std::filesystem::create_directories(parent, ec);
+  if (ec) return DeviceError("cannot create directory " + parent.string() + ": " + ec.message());
+  return WriteFileAtomically(path, os.str());
 }
 
 Status CheckCameraMatches(const CameraIntrinsics& cal, const std::string& model,

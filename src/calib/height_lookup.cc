@@ -6,6 +6,8 @@
 
 #include <Eigen/Dense>
 
+#include "insitu/core/robust.h"
+
 namespace insitu::calib {
 namespace {
 
@@ -111,8 +113,7 @@ HeightLookup HeightLookup::Build(const std::vector<HeightObservation>& obs,
           residual[r] = c.Eval(o.centres[r].x()) - o.centres[r].y();
           if (keep[r]) abs_kept.push_back(std::abs(residual[r]));
         }
-        std::nth_element(abs_kept.begin(), abs_kept.begin() + abs_kept.size() / 2, abs_kept.end());
-        const double limit = std::max(1.0, 5.0 * 1.4826 * abs_kept[abs_kept.size() / 2]);
+        const double limit = std::max(1.0, 5.0 * kMadToSigma * MedianInPlace(abs_kept));
         bool changed = false;
         for (size_t r = 0; r < o.centres.size(); ++r) {
           const char k = std::abs(residual[r]) <= limit;

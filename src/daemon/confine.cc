@@ -111,4 +111,59 @@ Status CheckInlineJob(const nlohmann::json& job, const std::string& jobs_dir,
   return Status::Ok();
 }
 
+bool InsideRoots(const std::string& path, const ReadRoots& roots) {
+  std::error_code ec;
+  const fs::path full = fs::weakly_canonical(fs::absolute(path), ec);
+  if (ec) return false;
+  for (const std::string& f : roots.files) {
+    std::error_code ec_file;
+    if (fs::weakly_canonical(fs::absolute(f), ec_file) == full && !ec_file) return true;
+  }
+  for (const std::string& d : roots.folders) {
+    std::error_code ec_root;
+    const fs::path root = fs::weakly_canonical(fs::absolute(d), ec_root);
+    if (ec_root || root.empty()) continue;
+    const auto [end, rest] = std::mismatch(root.begin(), root.end(), full.begin(), full.end());
+    if (end == root.end()) return true;
+  }
+  return false;
+}
+
+namespace {
+
+Status CheckPath(const ConfigNode& value, const std::string& folder, const ReadRoots& roots) {
+  auto text = value.AsString();
+  if (!text.ok() || text->empty()) return Status::Ok();  // the job's own reader says what is wrong
+  const fs::path p(*text);
+  const std::string path = p.is_absolute() ? *text : (fs::path(folder) / p).string();
+  if (InsideRoots(path, roots)) return Status::Ok();
+  return InvalidArgument(value.Where() + ": '" + *text +
+                         "' is outside the folders this daemon reads (read_roots)");
+}
+
+}  // namespace
+
+Status CheckReads(const ConfigNode& doc, const std::string& folder, const ReadRoots& roots) {
+  if (doc.IsMap()) {
+    for (const std::string& key : doc.Keys()) {
+      if (key == "output") continue;  // what a job writes: under its results folder (runner.h)
+      const ConfigNode child = doc.Child(key);
+      if (NamesAFile(key) && child.IsScalar()) {
+        INSITU_RETURN_IF_ERROR(CheckPath(child, folder, roots));
+      } else if (NamesAFile(key) && child.IsSequence()) {
+        for (size_t i = 0; i < child.size(); ++i) {
+          if (child.At(i).IsScalar()) INSITU_RETURN_IF_ERROR(CheckPath(child.At(i), folder, roots));
+        }
+      } else {
+        INSITU_RETURN_IF_ERROR(CheckReads(child, folder, roots));
+      }
+    }
+  } else if (doc.IsSequence()) {
+    for (size_t i = 0; i < doc.size(); ++i) {
+      INSITU_RETURN_IF_ERROR(CheckReads(doc.At(i), folder, roots));
+    }
+  }
+  return Status::Ok();
+}
+
 }  // namespace insitu::daemon

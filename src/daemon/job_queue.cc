@@ -61,6 +61,7 @@ Result<std::string> JobQueue::Cancel(const std::string& id) {
   }
   if (busy_ && (id.empty() || id == running_id_)) {
     cancel_ = true;
+    prompt_wake_.notify_all();
     return running_id_;
   }
   if (id.empty()) return FailedPrecondition("no job is running");
@@ -88,8 +89,43 @@ nlohmann::json JobQueue::Snapshot() const {
     out["job_id"] = running_id_;
     out["job"] = running_kind_;
     out["progress"] = progress_;
+    if (!prompt_.is_null()) out["prompt"] = prompt_;
   }
   return out;
+}
+
+Status JobQueue::Ack(int prompt_id, bool done) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (answer_ != Answer::kWaiting) return FailedPrecondition("no prompt waits for an answer");
+  const int waiting = prompt_["prompt_id"].get<int>();
+  if (prompt_id != 0 && prompt_id != waiting) {
+    return NotFound("prompt " + std::to_string(prompt_id) + " is not the one waiting (" +
+                    std::to_string(waiting) + ")");
+  }
+  answer_ = done ? Answer::kDone : Answer::kAborted;
+  prompt_wake_.notify_all();
+  return Status::Ok();
+}
+
+Status JobQueue::AskPerson(const std::string& job_id, const std::string& request) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  prompt_ = {{"prompt_id", ++prompt_seq_}, {"job_id", job_id}, {"request", request}};
+  answer_ = Answer::kWaiting;
+  emit_("prompt", prompt_);
+  Logger("daemon")->info("job {} asks the operator: {}", job_id, request);
+  prompt_wake_.wait(lock, [this] { return answer_ != Answer::kWaiting || cancel_.load(); });
+  const Answer answer = answer_;
+  const int id = prompt_["prompt_id"].get<int>();
+  answer_ = Answer::kNone;
+  prompt_ = nullptr;
+  emit_("prompt", {{"prompt_id", id}, {"job_id", job_id},
+                   {"answer", answer == Answer::kDone      ? "done"
+                              : answer == Answer::kAborted ? "abort"
+                                                           : "cancelled"}});
+  if (answer == Answer::kDone) return Status::Ok();
+  return Status(StatusCode::kCancelled, answer == Answer::kAborted
+                                            ? "the operator aborted at: " + request
+                                            : "cancelled while waiting for the operator");
 }
 
 void JobQueue::Stop() {
@@ -99,6 +135,7 @@ void JobQueue::Stop() {
     stopping_ = true;
     cancel_ = true;  // a running job stops at its next check; its state is saved
     wake_.notify_all();
+    prompt_wake_.notify_all();
   }
   if (worker_.joinable()) worker_.join();
 }
@@ -162,6 +199,7 @@ void JobQueue::RunOne(const Entry& entry) {
   job::RunOptions run;
   run.out_dir = rec.dir;
   run.cancel = &cancel_;
+  run.confine_writes = true;  // everything under the job's results folder
   run.progress = [this, id = rec.id](const job::JobProgress& p) {
     nlohmann::json fields = {
         {"job_id", id}, {"phase", p.phase}, {"done", p.done}, {"total", p.total}, {"unit", p.unit}};
@@ -170,6 +208,9 @@ void JobQueue::RunOne(const Entry& entry) {
       progress_ = fields;
     }
     emit_("progress", std::move(fields));
+  };
+  run.ask_person = [this, id = rec.id](const std::string& request) {
+    return AskPerson(id, request);
   };
   Logger("daemon")->info("job {} ({}) starts", rec.id, rec.job);
   const auto report = job::RunJob(entry.job, run);

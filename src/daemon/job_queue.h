@@ -7,6 +7,10 @@
 // for it (the operator armed it for the queue) and starts it. A fault or a cancel ends the
 // queue: every job still waiting is recorded cancelled ("not run: ..."), never started on a
 // machine in an unknown state.
+//
+// A job on a cell whose operator is a person asks them through the daemon: a `prompt` event
+// (prompt_id, job_id, request) that `status` also shows while it waits, answered by `ack` from
+// any authenticated client (done, or abort). Cancelling the job ends the wait.
 #pragma once
 
 #include <atomic>
@@ -56,7 +60,12 @@ class JobQueue {
   // list within one head tick) or takes a queued one out of the queue. Returns the id.
   // Errors: failed_precondition (nothing runs), not_found (no such running or queued job).
   Result<std::string> Cancel(const std::string& id);
-  // The running job and its last progress, and the queue, for `status`.
+  // Answers the running job's prompt: done (the operator did what it asks) or not (abort: the
+  // job ends cancelled). Errors: failed_precondition (no prompt waits), not_found (prompt_id is
+  // not the waiting one's; 0 means whichever waits).
+  Status Ack(int prompt_id, bool done);
+  // The running job and its last progress, the prompt waiting for the operator, and the
+  // queue, for `status`.
   nlohmann::json Snapshot() const;
   // Cancels the running job, ends the queue, waits for the worker. Idempotent.
   void Stop();
@@ -68,6 +77,8 @@ class JobQueue {
   };
   void Work();
   void RunOne(const Entry& entry);
+  // The running job's question to the operator: emits it and waits for Ack or a cancel.
+  Status AskPerson(const std::string& job_id, const std::string& request);
   // Under mutex_: records every waiting job cancelled with `reason` and tells it.
   void DropQueueLocked(const std::string& reason);
 
@@ -86,6 +97,11 @@ class JobQueue {
   std::string running_id_, running_kind_;
   nlohmann::json progress_;  // the running job's last progress event, or null
   std::atomic<bool> cancel_{false};
+  enum class Answer { kNone, kWaiting, kDone, kAborted };
+  std::condition_variable prompt_wake_;
+  Answer answer_ = Answer::kNone;
+  int prompt_seq_ = 0;
+  nlohmann::json prompt_;  // the waiting prompt, or null
   std::thread worker_;
 };
 

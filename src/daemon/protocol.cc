@@ -42,7 +42,7 @@ bool Matches(const nlohmann::json& v, ArgType t) {
 ParsedLine ParseRequest(std::string_view line, size_t max_bytes) {
   ParsedLine out;
   if (line.size() > max_bytes) {
-    out.error = {"line_too_long",
+    out.error = {errc::kLineTooLong,
                  "line of " + std::to_string(line.size()) + " bytes; the limit is " +
                      std::to_string(max_bytes),
                  nullptr};
@@ -53,21 +53,21 @@ ParsedLine ParseRequest(std::string_view line, size_t max_bytes) {
   // (invalid UTF-8 included).
   nlohmann::json j = nlohmann::json::parse(line.begin(), line.end(), nullptr, false);
   if (j.is_discarded()) {
-    out.error = {"invalid_json", "the line is not a JSON object", nullptr};
+    out.error = {errc::kInvalidJson, "the line is not a JSON object", nullptr};
     return out;
   }
   if (!j.is_object()) {
-    out.error = {"not_an_object", "a request is a JSON object {\"id\": ..., \"cmd\": ...}",
+    out.error = {errc::kNotAnObject, "a request is a JSON object {\"id\": ..., \"cmd\": ...}",
                  nullptr};
     return out;
   }
   const nlohmann::json id = j.contains("id") ? j["id"] : nlohmann::json();
   if (!j.contains("cmd")) {
-    out.error = {"missing_cmd", "the request has no \"cmd\"", id};
+    out.error = {errc::kMissingCmd, "the request has no \"cmd\"", id};
     return out;
   }
   if (!j["cmd"].is_string()) {
-    out.error = {"bad_type", "\"cmd\" must be a string", id};
+    out.error = {errc::kBadType, "\"cmd\" must be a string", id};
     return out;
   }
   out.ok = true;
@@ -97,9 +97,15 @@ const std::vector<CommandSpec>& CommandTable() {
        {{"job_id", ArgType::kString, false}},
        true,
        false},
+      {"ack",
+       "answer the running job's prompt (machine.operator: person): done, or abort to end the "
+       "job cancelled; prompt_id the prompt event's (default: whichever waits)",
+       {{"prompt_id", ArgType::kNumber, false}, {"abort", ArgType::kBool, false}},
+       true,
+       false},
       {"result", "a job's report", {{"job_id", ArgType::kString, true}}, true, false},
       {"list_results", "every job the results folder holds, newest first", {}, true, false},
-      {"subscribe", "receive state, job and progress events on this connection", {}, true, false},
+      {"subscribe", "receive state, job, progress and prompt events on this connection", {}, true, false},
       {"shutdown", "stop the daemon safely (admin)", {}, true, true},
   };
   return kTable;
@@ -117,11 +123,11 @@ std::optional<ProtocolError> CheckRequest(const Request& r) {
   if (spec == nullptr) {
     std::string known;
     for (const CommandSpec& c : CommandTable()) known += (known.empty() ? "" : ", ") + c.name;
-    return ProtocolError{"unknown_command",
+    return ProtocolError{errc::kUnknownCommand,
                          "unknown command \"" + r.cmd + "\" (known: " + known + ")", r.id};
   }
   const auto bad = [&](const std::string& message) {
-    return ProtocolError{"bad_argument", r.cmd + ": " + message, r.id};
+    return ProtocolError{errc::kBadArgument, r.cmd + ": " + message, r.id};
   };
   for (auto item = r.body.begin(); item != r.body.end(); ++item) {
     const std::string& key = item.key();  // not a structured binding: lambdas capture it
@@ -143,23 +149,23 @@ std::string ErrorCode(const Status& s) {
     case StatusCode::kOk:
       return "ok";
     case StatusCode::kInvalidArgument:
-      return "bad_argument";
+      return errc::kBadArgument;
     case StatusCode::kNotFound:
-      return "not_found";
+      return errc::kNotFound;
     case StatusCode::kParseError:
-      return "bad_input";
+      return errc::kBadInput;
     case StatusCode::kOutOfRange:
-      return "out_of_range";
+      return errc::kOutOfRange;
     case StatusCode::kFailedPrecondition:
-      return "wrong_state";
+      return errc::kWrongState;
     case StatusCode::kDeviceError:
-      return "device_error";
+      return errc::kDeviceError;
     case StatusCode::kCancelled:
-      return "cancelled";
+      return errc::kCancelled;
     case StatusCode::kInternal:
-      return "internal";
+      return errc::kInternal;
   }
-  return "internal";
+  return errc::kInternal;
 }
 
 std::string ReplyOk(const nlohmann::json& id, nlohmann::json fields) {

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <asio.hpp>
 #include <atomic>
+#include <cmath>
 #include <condition_variable>
 #include <deque>
 #include <filesystem>
@@ -57,6 +58,12 @@ Status ServerOptions::Validate() const {
   asio::error_code ec;
   asio::ip::make_address(bind_address, ec);
   if (ec) return InvalidArgument("bind_address '" + bind_address + "' is not an IP address");
+  for (const std::string& root : read_roots) {
+    std::error_code ec_root;
+    if (!std::filesystem::is_directory(root, ec_root)) {
+      return InvalidArgument("read_roots: '" + root + "' is not a folder");
+    }
+  }
   return Status::Ok();
 }
 
@@ -265,7 +272,7 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
       }
       self->server_->log->debug("closing {}: no auth within {} s", self->peer_,
                                 self->server_->options.auth_timeout_s);
-      self->SendAndClose(ReplyError(nullptr, "auth_timeout",
+      self->SendAndClose(ReplyError(nullptr, errc::kAuthTimeout,
                                     "no auth within " +
                                         FormatSeconds(self->server_->options.auth_timeout_s) +
                                         " s of connecting; closing the connection"));
@@ -290,7 +297,7 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
         self->Close();  // not reading either: a last line would never be taken
         return;
       }
-      self->SendAndClose(ReplyError(nullptr, "idle_timeout", "no complete line for too long"));
+      self->SendAndClose(ReplyError(nullptr, errc::kIdleTimeout, "no complete line for too long"));
     });
   }
 
@@ -303,7 +310,7 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
           if (ec == asio::error::not_found) {
             // The buffer filled without a newline: the line is over the limit.
             self->SendAndClose(
-                ReplyError(nullptr, "line_too_long",
+                ReplyError(nullptr, errc::kLineTooLong,
                            "a line over " + std::to_string(self->server_->options.max_line_bytes) +
                                " bytes; closing the connection"));
             return;
@@ -349,7 +356,7 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
     if (!o.token.empty() && !authed_ && r.cmd != "auth") {
       server_->log->warn("refused {}: '{}' before auth", peer_, r.cmd.substr(0, 32));
       SendAndClose(
-          ReplyError(r.id, "unauthorized", "authenticate first: {\"cmd\": \"auth\", ...}"));
+          ReplyError(r.id, errc::kUnauthorized, "authenticate first: {\"cmd\": \"auth\", ...}"));
       return;
     }
     if (r.cmd == "auth" && (!o.token.empty() || !o.admin_token.empty())) {
@@ -361,12 +368,12 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
       const bool operator_ = !o.token.empty() && EqualConstantTime(given, o.token);
       if (!admin && !operator_) {
         server_->log->warn("refused {}: wrong token", peer_);  // never the token itself
-        SendAndClose(ReplyError(r.id, "unauthorized", "wrong token"));
+        SendAndClose(ReplyError(r.id, errc::kUnauthorized, "wrong token"));
         return;
       }
       if (!Promote()) {
         server_->log->warn("refused {}: every client slot is taken", peer_);
-        SendAndClose(ReplyError(r.id, "too_many_clients", TooManyClients()));
+        SendAndClose(ReplyError(r.id, errc::kTooManyClients, TooManyClients()));
         return;
       }
       authed_ = true;
@@ -383,7 +390,7 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
     const bool open_daemon = o.token.empty() && o.admin_token.empty();
     if (spec->admin && !admin_ && !open_daemon) {
       server_->log->warn("refused {}: '{}' needs an admin client", peer_, r.cmd);
-      Send(ReplyError(r.id, "forbidden",
+      Send(ReplyError(r.id, errc::kForbidden,
                       r.cmd + " needs an admin client: authenticate with the admin token"));
       return;
     }
@@ -409,6 +416,15 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
       Send(server_->Run(r));
     } else if (r.cmd == "cancel") {
       Send(server_->Cancel(r));
+    } else if (r.cmd == "ack") {
+      const double id = r.body.contains("prompt_id") ? r.body["prompt_id"].get<double>() : 0.0;
+      if (!(id >= 0 && id <= 1e9 && id == std::floor(id))) {
+        Send(ReplyError(r.id, errc::kBadArgument, "ack: \"prompt_id\" must be a prompt's number"));
+        return;
+      }
+      const bool abort = r.body.contains("abort") && r.body["abort"].get<bool>();
+      const Status st = server_->jobs->Ack(static_cast<int>(id), !abort);
+      Send(st.ok() ? ReplyOk(r.id, {{"prompt_id", static_cast<int>(id)}}) : ReplyError(r.id, st));
     } else if (r.cmd == "result") {
       Send(server_->ResultOf(r));
     } else if (r.cmd == "list_results") {
@@ -418,7 +434,7 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
       Send(ReplyOk(r.id));
       server_->RequestShutdown();
     } else {
-      Send(ReplyError(r.id, "internal", r.cmd + ": in the command table but without a handler"));
+      Send(ReplyError(r.id, errc::kInternal, r.cmd + ": in the command table but without a handler"));
     }
   }
 
@@ -454,7 +470,7 @@ void Server::Impl::Accept() {
     if (!refused.empty()) {
       // Debug only: a flood would otherwise write a line per connection.
       log->debug("refused {}: {}", session->peer(), refused);
-      session->SendAndClose(ReplyError(nullptr, "too_many_clients", refused));
+      session->SendAndClose(ReplyError(nullptr, errc::kTooManyClients, refused));
     } else {
       session->Begin();
     }
@@ -488,21 +504,59 @@ std::string Server::Impl::Run(const Request& r) {
   // A client changes a job's settings, never the files it reads or writes (confine.h).
   const Status keys = CheckSetKeys(sets);
   if (!keys.ok()) return ReplyError(r.id, keys);
+  if (!options.machine_sets.empty()) {
+    for (const std::string& s : sets) {
+      if (s.rfind("machine.", 0) == 0 || s.rfind("machine=", 0) == 0) {
+        return ReplyError(r.id, InvalidArgument("set: '" + s.substr(0, s.find('=')) +
+                                                "': this daemon's cell is its configuration's "
+                                                "machine: section; a job cannot change it"));
+      }
+    }
+  }
   // The daemon's machine wins over the job's and the client's: it owns the cell.
   sets.insert(sets.end(), options.machine_sets.begin(), options.machine_sets.end());
   const nlohmann::json& spec = r.body["job"];
+  // Files a job reads: inside the read roots, or the cell's own.
+  ReadRoots roots;
+  roots.folders = options.read_roots.empty() ? std::vector<std::string>{options.jobs_dir}
+                                             : options.read_roots;
+  for (const std::string& s : options.machine_sets) {
+    const size_t eq = s.find('=');
+    if (eq != std::string::npos && NamesAFile(s.substr(0, eq))) roots.files.push_back(s.substr(eq + 1));
+  }
   const auto load = [&]() -> Result<job::LoadedJob> {
     if (!spec.is_string()) {
       INSITU_RETURN_IF_ERROR(CheckInlineJob(spec, options.jobs_dir));
       return job::LoadJobText(spec.dump(), "<run request>", options.jobs_dir, sets);
     }
-    // A job file inside the jobs folder only.
+    // A job file inside the jobs folder only, and what it names (its world first: loading
+    // reads it) inside the read roots.
     INSITU_ASSIGN_OR_RETURN(const std::string path,
                             JobPathInside(options.jobs_dir, spec.get<std::string>()));
+    const auto raw = ConfigNode::LoadFile(path);
+    if (raw.ok()) {
+      INSITU_RETURN_IF_ERROR(
+          CheckReads(*raw, std::filesystem::path(path).parent_path().string(), roots));
+    }
     return job::LoadJobFile(path, sets);
   };
   Result<job::LoadedJob> loaded = load();
   if (!loaded.ok()) return ReplyError(r.id, loaded.status());
+  // The job as it will run (the cell's files in it): every file inside the roots, and a world
+  // file's base beside it.
+  Status reads = CheckReads(loaded->root, loaded->folder, roots);
+  const ConfigNode world_file = loaded->root.Child("world");
+  const ConfigNode base = loaded->world.Child("base");
+  if (reads.ok() && world_file.IsScalar() && base.IsScalar()) {
+    const std::string world_path = job::ResolvePath(loaded->folder, *world_file.AsString());
+    const std::string base_path = job::ResolvePath(
+        std::filesystem::path(world_path).parent_path().string(), *base.AsString());
+    if (!InsideRoots(base_path, roots)) {
+      reads = InvalidArgument(base.Where() + ": '" + *base.AsString() +
+                              "' is outside the folders this daemon reads (read_roots)");
+    }
+  }
+  if (!reads.ok()) return ReplyError(r.id, reads);
   // Refused here, by file, line and key, before the machine is touched.
   const Status checked = job::CheckJob(*loaded);
   if (!checked.ok()) return ReplyError(r.id, checked);

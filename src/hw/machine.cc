@@ -1,15 +1,65 @@
-#include "insitu/hw/machine.h"
-
+#include <algorithm>
 #include <chrono>
 #include <map>
 #include <mutex>
 #include <thread>
 
+#include "insitu/hw/cell.h"
 #include "insitu/hw/lmc_cor.h"
 #include "insitu/hw/lmc_sim_board.h"
 #include "insitu/hw/sim_backend.h"
 
 namespace insitu::hw {
+
+const char* RoleKey(Role role) {
+  switch (role) {
+    case Role::kScanner: return "scanner";
+    case Role::kCamera: return "camera";
+    case Role::kCoaxial: return "coaxial";
+    case Role::kStage: return "stage";
+    case Role::kAxis: return "axis";
+    case Role::kProfiler: return "profiler";
+    case Role::kOperator: return "operator";
+  }
+  return "?";
+}
+
+const char* RoleName(Role role) {
+  switch (role) {
+    case Role::kScanner: return "scan head";
+    case Role::kCamera: return "side camera";
+    case Role::kCoaxial: return "coaxial camera";
+    case Role::kStage: return "Z stage";
+    case Role::kAxis: return "axis";
+    case Role::kProfiler: return "line profiler";
+    case Role::kOperator: return "operator";
+  }
+  return "?";
+}
+
+bool Machine::Has(Role role) const {
+  switch (role) {
+    case Role::kScanner: return scanner != nullptr;
+    case Role::kCamera: return camera != nullptr;
+    case Role::kCoaxial: return coaxial != nullptr;
+    case Role::kStage: return stage != nullptr;
+    case Role::kAxis: return axis != nullptr;
+    case Role::kProfiler: return profiler != nullptr;
+    case Role::kOperator: return person != nullptr;
+  }
+  return false;
+}
+
+Status Machine::Require(std::initializer_list<Role> roles, const std::string& who) const {
+  for (Role r : roles) {
+    if (Has(r)) continue;
+    return FailedPrecondition(who + " needs a " + RoleName(r) + ", and the cell has none " +
+                              "(machine." + RoleKey(r) + " names no device" +
+                              (real ? " on this real cell" : "") + ")");
+  }
+  return Status::Ok();
+}
+
 namespace {
 
 std::mutex g_mutex;
@@ -30,85 +80,197 @@ class WallClock : public MachineClock {
   std::chrono::steady_clock::time_point start_;
 };
 
+const std::string& Named(const MachineConfig& c, Role role) {
+  return DeviceField(const_cast<MachineConfig&>(c), role);
+}
+
+// A device the simulator provides: its own, or served through a real protocol.
+bool Simulated(const MachineConfig& c, Role role) {
+  const std::string d = DeviceFor(c, role);
+  if (d == "sim") return true;
+  switch (role) {
+    case Role::kScanner: return d == "lmc" && c.lmc.transport == "sim_board";
+    case Role::kCamera: return d == "aravis" && !c.aravis.simulate_on.empty();
+    case Role::kProfiler: return d == "aravis" && !c.aravis_profiler.simulate_on.empty();
+    default: return false;
+  }
+}
+
+Result<std::unique_ptr<Scanner>> OpenLmc(const LmcDeviceConfig& l,
+                                         std::shared_ptr<sim::SimWorld> world) {
+  INSITU_RETURN_IF_ERROR(l.board.Validate().Prefixed("lmc.board"));
+  std::unique_ptr<lmc::Transport> transport;
+  if (l.transport == "sim_board") {
+    transport = std::make_unique<lmc::SimBoard>(world, l.board);
+  } else if (l.transport == "usb") {
+    INSITU_ASSIGN_OR_RETURN(transport, lmc::OpenUsb(l.usb));
+  } else {
+    return InvalidArgument("lmc.transport '" + l.transport + "' is not usb or sim_board");
+  }
+  if (!l.correction_file.empty()) {
+    INSITU_ASSIGN_OR_RETURN(const lmc::CorFile cor, lmc::ReadCor(l.correction_file));
+    INSITU_RETURN_IF_ERROR(lmc::UploadCorrection(*transport, lmc::ToBoard(cor))
+                               .Prefixed("uploading " + l.correction_file));
+  }
+  return lmc::MakeScanner(std::move(transport), l.board);
+}
+
+Result<std::unique_ptr<Camera>> OpenAravisCamera(const AravisDeviceConfig& a,
+                                                 std::shared_ptr<sim::SimWorld> world,
+                                                 Machine* m) {
+  aravis::CameraOptions options = a.camera;
+  if (!a.simulate_on.empty()) {
+    INSITU_ASSIGN_OR_RETURN(std::shared_ptr<aravis::SimulatedGigECamera> served,
+                            aravis::SimulatedGigECamera::Start(world, a.simulate_on,
+                                                               world->options().camera.serial));
+    served->SetLostPacketRatio(a.lost_packet_ratio);
+    m->peers.push_back(served);
+    options.device = a.simulate_on;
+    // The served camera renders each frame on this computer after the trigger: on a loaded
+    // machine that takes seconds, which a real camera's timeout does not allow for.
+    options.frame_timeout_ms += kSimulatedRenderAllowanceMs;
+    options.roi_width = world->options().camera.width_px;
+    options.roi_height = world->options().camera.height_px;
+  }
+  return aravis::OpenCamera(options);
+}
+
+Result<std::unique_ptr<Profiler>> OpenAravisProfiler(const AravisProfilerConfig& a,
+                                                     std::unique_ptr<Profiler> simulated,
+                                                     std::shared_ptr<sim::SimWorld> world,
+                                                     Machine* m) {
+  aravis::ProfilerOptions options = a.profiler;
+  if (!a.simulate_on.empty()) {
+    if (simulated == nullptr) {
+      return InvalidArgument(
+          "aravis_profiler.simulate_on needs a simulated profiler (world.profiler.present)");
+    }
+    std::shared_ptr<Profiler> source = std::move(simulated);
+    INSITU_ASSIGN_OR_RETURN(std::shared_ptr<aravis::SimulatedGigEProfiler> served,
+                            aravis::SimulatedGigEProfiler::Start(
+                                source, a.simulate_on, world->options().profiler.serial));
+    served->SetLostPacketRatio(a.lost_packet_ratio);
+    m->peers.push_back(served);
+    options.device = a.simulate_on;
+    options.frame_timeout_ms += kSimulatedRenderAllowanceMs;
+  }
+  return aravis::OpenProfiler(options);
+}
+
+// A simulated device the world does not have (a coaxial camera on a head without one).
+Status Absent(Role role, const char* world_key) {
+  return FailedPrecondition(std::string("machine.") + RoleKey(role) + ": sim, but the world has no " +
+                            RoleName(role) + " (world." + world_key + ".present is false)");
+}
+
 }  // namespace
 
-Status ReplaceDevices(const MachineConfig& config, std::shared_ptr<sim::SimWorld> world,
-                      Machine* m) {
-  bool real = false;
-  if (config.scanner == "lmc") {
-    const LmcDeviceConfig& l = config.lmc;
-    INSITU_RETURN_IF_ERROR(l.board.Validate().Prefixed("lmc.board"));
-    std::unique_ptr<lmc::Transport> transport;
-    if (l.transport == "sim_board") {
-      if (world == nullptr) {
-        return InvalidArgument("lmc.transport sim_board needs the sim backend (a simulated head)");
-      }
-      transport = std::make_unique<lmc::SimBoard>(world, l.board);
-    } else if (l.transport == "usb") {
-      INSITU_ASSIGN_OR_RETURN(transport, lmc::OpenUsb(l.usb));
-      real = true;
-    } else {
-      return InvalidArgument("lmc.transport '" + l.transport + "' is not usb or sim_board");
-    }
-    if (!l.correction_file.empty()) {
-      INSITU_ASSIGN_OR_RETURN(const lmc::CorFile cor, lmc::ReadCor(l.correction_file));
-      INSITU_RETURN_IF_ERROR(lmc::UploadCorrection(*transport, lmc::ToBoard(cor))
-                                 .Prefixed("uploading " + l.correction_file));
-    }
-    m->scanner = lmc::MakeScanner(std::move(transport), l.board);
-  } else if (!config.scanner.empty() && config.scanner != config.backend) {
-    return NotFound("scanner backend '" + config.scanner + "' does not exist (known: lmc)");
+Result<Machine> CreateMachineOn(const MachineConfig& config,
+                                std::shared_ptr<sim::SimWorld> simulated) {
+  for (Role r : kRoles) {
+    const std::string& d = Named(config, r);
+    static const std::map<Role, std::vector<std::string>> kKnown = {
+        {Role::kScanner, {"sim", "lmc", "none"}},    {Role::kCamera, {"sim", "aravis", "none"}},
+        {Role::kCoaxial, {"sim", "none"}},           {Role::kStage, {"sim", "grbl", "none"}},
+        {Role::kAxis, {"sim", "none"}},              {Role::kProfiler, {"sim", "aravis", "none"}},
+        {Role::kOperator, {"sim", "person", "none"}}};
+    const std::vector<std::string>& known = kKnown.at(r);
+    if (d.empty() || std::find(known.begin(), known.end(), d) != known.end()) continue;
+    std::string list;
+    for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
+    return NotFound(std::string("machine.") + RoleKey(r) + ": no device '" + d + "' (known: " +
+                    list + ")");
   }
-  if (config.camera == "aravis") {
-    aravis::CameraOptions options = config.aravis.camera;
-    if (!config.aravis.simulate_on.empty()) {
-      if (world == nullptr) {
-        return InvalidArgument("aravis.simulate_on needs the sim backend (a simulated camera)");
-      }
-      INSITU_ASSIGN_OR_RETURN(std::shared_ptr<aravis::SimulatedGigECamera> served,
-                              aravis::SimulatedGigECamera::Start(world, config.aravis.simulate_on,
-                                                                 world->options().camera.serial));
-      served->SetLostPacketRatio(config.aravis.lost_packet_ratio);
-      m->peers.push_back(served);
-      options.device = config.aravis.simulate_on;
-      // The served camera renders each frame on this computer after the trigger: on a loaded
-      // machine that takes seconds, which a real camera's timeout does not allow for.
-      options.frame_timeout_ms += kSimulatedRenderAllowanceMs;
-      options.roi_width = world->options().camera.width_px;
-      options.roi_height = world->options().camera.height_px;
-    } else {
-      real = true;
+  Machine m;
+  m.real = IsRealCell(config);
+  std::shared_ptr<sim::SimWorld> world;
+  Machine sim;  // the simulator's devices, moved into the roles that are simulated
+  if (NeedsSimulator(config)) {
+    if (simulated == nullptr) {
+      INSITU_RETURN_IF_ERROR(config.world.Validate().Prefixed("world"));
+      simulated = std::make_shared<sim::SimWorld>(config.world);
     }
-    INSITU_ASSIGN_OR_RETURN(m->camera, aravis::OpenCamera(options));
-  } else if (!config.camera.empty() && config.camera != config.backend) {
-    return NotFound("camera backend '" + config.camera + "' does not exist (known: aravis)");
+    world = simulated;
+    sim = MakeSimMachine(world);
+    m.peers = std::move(sim.peers);
   }
-  if (config.profiler == "aravis") {
-    aravis::ProfilerOptions options = config.aravis_profiler.profiler;
-    if (!config.aravis_profiler.simulate_on.empty()) {
-      if (world == nullptr || m->profiler == nullptr) {
-        return InvalidArgument(
-            "aravis_profiler.simulate_on needs the sim backend with a profiler (world.profiler)");
-      }
-      std::shared_ptr<Profiler> source = std::move(m->profiler);
-      INSITU_ASSIGN_OR_RETURN(
-          std::shared_ptr<aravis::SimulatedGigEProfiler> served,
-          aravis::SimulatedGigEProfiler::Start(source, config.aravis_profiler.simulate_on,
-                                               world->options().profiler.serial));
-      served->SetLostPacketRatio(config.aravis_profiler.lost_packet_ratio);
-      m->peers.push_back(served);
-      options.device = config.aravis_profiler.simulate_on;
-      options.frame_timeout_ms += kSimulatedRenderAllowanceMs;
-    } else {
-      real = true;
+  const auto role_error = [](Role r, const Status& s) {
+    return s.Prefixed(std::string("machine.") + RoleKey(r));
+  };
+
+  const std::string scanner = DeviceFor(config, Role::kScanner);
+  if (scanner == "sim") {
+    m.scanner = std::move(sim.scanner);
+  } else if (scanner == "lmc") {
+    auto opened = OpenLmc(config.lmc, world);
+    if (!opened.ok()) return role_error(Role::kScanner, opened.status());
+    m.scanner = std::move(*opened);
+  }
+  const std::string camera = DeviceFor(config, Role::kCamera);
+  if (camera == "sim") {
+    m.camera = std::move(sim.camera);
+  } else if (camera == "aravis") {
+    auto opened = OpenAravisCamera(config.aravis, world, &m);
+    if (!opened.ok()) return role_error(Role::kCamera, opened.status());
+    m.camera = std::move(*opened);
+  }
+  if (DeviceFor(config, Role::kCoaxial) == "sim") {
+    if (sim.coaxial == nullptr && !config.coaxial.empty()) {
+      return Absent(Role::kCoaxial, "scan_head.coaxial");
     }
-    INSITU_ASSIGN_OR_RETURN(m->profiler, aravis::OpenProfiler(options));
-  } else if (!config.profiler.empty() && config.profiler != config.backend) {
-    return NotFound("profiler backend '" + config.profiler + "' does not exist (known: aravis)");
+    m.coaxial = std::move(sim.coaxial);
+  }
+  const std::string stage = DeviceFor(config, Role::kStage);
+  if (stage == "sim") {
+    m.stage = std::move(sim.stage);
+  } else if (stage == "grbl") {
+    auto opened = grbl::OpenStage(config.grbl);
+    if (!opened.ok()) return role_error(Role::kStage, opened.status());
+    m.stage = std::move(*opened);
+  }
+  if (DeviceFor(config, Role::kAxis) == "sim") {
+    if (sim.axis == nullptr && !config.axis.empty()) return Absent(Role::kAxis, "gantry");
+    m.axis = std::move(sim.axis);
+  }
+  const std::string profiler = DeviceFor(config, Role::kProfiler);
+  if (profiler == "sim") {
+    if (sim.profiler == nullptr && !config.profiler.empty()) {
+      return Absent(Role::kProfiler, "profiler");
+    }
+    m.profiler = std::move(sim.profiler);
+  } else if (profiler == "aravis") {
+    auto opened = OpenAravisProfiler(config.aravis_profiler, std::move(sim.profiler), world, &m);
+    if (!opened.ok()) return role_error(Role::kProfiler, opened.status());
+    m.profiler = std::move(*opened);
+  }
+  const std::string person = DeviceFor(config, Role::kOperator);
+  if (person == "sim") {
+    m.person = std::move(sim.person);
+  } else if (person == "person") {
+    if (!config.ask_person) {
+      return FailedPrecondition(
+          "machine.operator: person, but nothing here can ask one (run the job from a terminal "
+          "with insitu run, or through insitud, whose clients answer its prompt events)");
+    }
+    // On a simulated cell the person is asked and the simulator's hands then do it.
+    m.person = MakePersonOperator(config.ask_person, std::move(sim.person));
   }
   // Real devices run on the wall clock: a settle time must really pass.
-  if (real) m->clock = std::make_unique<WallClock>();
-  return Status::Ok();
+  if (m.real) {
+    m.clock = std::make_unique<WallClock>();
+  } else {
+    m.clock = std::move(sim.clock);
+  }
+  if (m.real) {
+    for (Role r : kRoles) {
+      if (!Simulated(config, r) || !m.Has(r)) continue;
+      m.warnings.push_back(std::string("dry run: the ") + RoleName(r) + " is simulated (machine." +
+                           RoleKey(r) + ": " + DeviceFor(config, r) +
+                           ") on a cell with real devices; what it " +
+                           (r == Role::kOperator ? "does" : "moves or measures") + " is not real");
+    }
+  }
+  return m;
 }
 
 namespace {
@@ -116,19 +278,58 @@ namespace {
 std::map<std::string, BackendFactory>& Registry() {
   static std::map<std::string, BackendFactory> registry = [] {
     std::map<std::string, BackendFactory> r;
-    r["sim"] = [](const MachineConfig& config) -> Result<Machine> {
-      INSITU_RETURN_IF_ERROR(config.world.Validate().Prefixed("world"));
-      auto world = std::make_shared<sim::SimWorld>(config.world);
-      Machine m = MakeSimMachine(world);
-      INSITU_RETURN_IF_ERROR(ReplaceDevices(config, world, &m));
-      return m;
-    };
+    r["sim"] = [](const MachineConfig& config) { return CreateMachineOn(config, nullptr); };
     return r;
   }();
   return registry;
 }
 
 }  // namespace
+
+std::string& DeviceField(MachineConfig& c, Role role) {
+  switch (role) {
+    case Role::kScanner: return c.scanner;
+    case Role::kCamera: return c.camera;
+    case Role::kCoaxial: return c.coaxial;
+    case Role::kStage: return c.stage;
+    case Role::kAxis: return c.axis;
+    case Role::kProfiler: return c.profiler;
+    case Role::kOperator: return c.person;
+  }
+  return c.scanner;
+}
+
+std::string DeviceFor(const MachineConfig& c, Role role) {
+  const std::string& named = Named(c, role);
+  if (!named.empty()) return named;
+  return IsRealCell(c) ? "none" : "sim";
+}
+
+bool IsRealDevice(const MachineConfig& c, Role role) {
+  const std::string& d = Named(c, role);
+  switch (role) {
+    case Role::kScanner: return d == "lmc" && c.lmc.transport == "usb";
+    case Role::kCamera: return d == "aravis" && c.aravis.simulate_on.empty();
+    case Role::kProfiler: return d == "aravis" && c.aravis_profiler.simulate_on.empty();
+    case Role::kStage: return d == "grbl";
+    default: return false;
+  }
+}
+
+bool IsRealCell(const MachineConfig& c) {
+  for (Role r : kRoles) {
+    if (IsRealDevice(c, r)) return true;
+  }
+  return false;
+}
+
+bool NeedsSimulator(const MachineConfig& c) {
+  for (Role r : kRoles) {
+    if (Simulated(c, r)) return true;
+  }
+  // A person rehearsing on a simulated cell acts through the simulator's hands.
+  return !IsRealCell(c);
+}
 
 void RegisterBackend(const std::string& name, BackendFactory factory) {
   std::lock_guard<std::mutex> lock(g_mutex);

@@ -11,6 +11,8 @@
 #include <cmath>
 #include <limits>
 
+#include "insitu/core/robust.h"
+
 namespace insitu::inspect {
 namespace {
 
@@ -54,12 +56,9 @@ Points2 Resample(const Points2& polyline, double step, bool* is_closed) {
   for (size_t i = 0; i + 1 < polyline.size(); ++i) {
     seg.push_back((polyline[i + 1] - polyline[i]).norm());
   }
-  std::vector<double> sorted = seg;
-  std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2),
-                   sorted.end());
   Points2 chain = polyline;
   const bool closed =
-      *is_closed || (polyline.back() - polyline.front()).norm() <= 1.5 * sorted[sorted.size() / 2];
+      *is_closed || (polyline.back() - polyline.front()).norm() <= 1.5 * Median(seg);
   if (closed && (polyline.back() - polyline.front()).norm() > 0) chain.push_back(polyline.front());
   *is_closed = closed;
   double total = 0.0;

@@ -9,6 +9,8 @@
 #include <cstdio>
 #include <limits>
 
+#include "insitu/core/robust.h"
+
 namespace insitu::inspect {
 namespace {
 
@@ -18,20 +20,10 @@ struct Point {
   double x, z;
 };
 
-// Median of v (reordered).
-double Median(std::vector<double>* v) {
-  if (v->empty()) return kNaN;
-  const size_t mid = v->size() / 2;
-  std::nth_element(v->begin(), v->begin() + static_cast<long>(mid), v->end());
-  return (*v)[mid];
-}
-
 // A robust standard deviation of values about zero (1.4826 times their median absolute
 // value), never below `floor`.
 double RobustSigma(const std::vector<double>& v, double floor) {
-  std::vector<double> a(v.size());
-  for (size_t i = 0; i < v.size(); ++i) a[i] = std::abs(v[i]);
-  return std::max(1.4826 * Median(&a), floor);
+  return std::max(kMadToSigma * MedianAbsDeviationFrom(v, 0.0), floor);
 }
 
 // Each value's departure from the median of its neighbours within two places, itself among them
@@ -44,7 +36,7 @@ std::vector<double> FromLocalMedian(const std::vector<double>& v, bool with_self
     for (int j = std::max(0, i - 2); j <= std::min(n - 1, i + 2); ++j) {
       if (with_self || j != i) near.push_back(v[j]);
     }
-    out[i] = v[i] - Median(&near);
+    out[i] = v[i] - MedianInPlace(near);
   }
   return out;
 }

@@ -11,6 +11,7 @@
 #include <set>
 
 #include "insitu/core/config.h"
+#include "insitu/core/robust.h"
 
 namespace insitu::inspect {
 
@@ -309,11 +310,7 @@ std::vector<PlaneRow> MakeRows(const std::vector<Sample>& samples,
 
 // A robust standard deviation of values about zero: 1.4826 times their median absolute value.
 double RobustSigma(const Eigen::VectorXd& r) {
-  std::vector<double> a(r.size());
-  for (Eigen::Index i = 0; i < r.size(); ++i) a[i] = std::abs(r[i]);
-  const size_t mid = a.size() / 2;
-  std::nth_element(a.begin(), a.begin() + static_cast<long>(mid), a.end());
-  return 1.4826 * a[mid];
+  return kMadToSigma * MedianAbsDeviationFrom(std::vector<double>(r.begin(), r.end()), 0.0);
 }
 
 }  // namespace

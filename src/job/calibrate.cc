@@ -7,15 +7,14 @@
 #include <cstdio>
 #include <filesystem>
 
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
-
 #include "insitu/calib/calibration.h"
 #include "insitu/calib/camera_calibration.h"
 #include "insitu/core/log.h"
+#include "insitu/vision/canvas.h"
 #include "insitu/vision/stripe.h"
 #include "insitu/vision/targets.h"
+#include "job/cell.h"
+#include "job/output_path.h"
 #include "job/progress.h"
 #include "job/save_calibration.h"
 
@@ -116,30 +115,18 @@ Status ReadSpec(const LoadedJob& job, CalibrateSpec* s, hw::MachineConfig* machi
   return MachineConfigFor(job, s->machine, machine);
 }
 
-vision::ImageView View(const Frame& f) {
-  return {f.bytes.data(), f.width, f.height, f.stride_bytes(), f.bit_depth};
-}
-
 // The frame with marks drawn on it, half size: what the operator looks at to judge a view.
 Status SaveOverlay(const Frame& frame, const std::vector<Eigen::Vector2d>& points, int rgb,
                    const std::string& path) {
-  try {
-    cv::Mat gray(frame.height, frame.width, frame.bit_depth > 8 ? CV_16UC1 : CV_8UC1,
-                 const_cast<uint8_t*>(frame.bytes.data()));
-    cv::Mat g8, color, small;
-    gray.convertTo(g8, CV_8U, frame.bit_depth > 8 ? 255.0 / frame.max_value() : 1.0);
-    cv::cvtColor(g8, color, cv::COLOR_GRAY2BGR);
-    const cv::Scalar c(rgb & 0xFF, (rgb >> 8) & 0xFF, (rgb >> 16) & 0xFF);
-    for (const Eigen::Vector2d& p : points) {
-      cv::circle(color, cv::Point(static_cast<int>(p.x()), static_cast<int>(p.y())), 9, c, 3,
-                 cv::LINE_AA);
-    }
-    cv::resize(color, small, cv::Size(), 0.5, 0.5, cv::INTER_AREA);
-    if (!cv::imwrite(path, small)) return DeviceError("cannot write " + path);
-  } catch (const cv::Exception& e) {
-    return DeviceError("cannot write " + path + ": " + e.what());
+  auto picture = vision::Canvas::FromGray(vision::ViewOf(frame));
+  if (!picture.ok()) return DeviceError("cannot write " + path + ": " + picture.status().message());
+  for (const Eigen::Vector2d& p : points) {
+    // Whole pixels, truncated.
+    const Eigen::Vector2d at(static_cast<int>(p.x()), static_cast<int>(p.y()));
+    picture->Circle(at, 9, {.rgb = rgb, .thickness = 3, .smooth = true});
   }
-  return Status::Ok();
+  picture->Resize(0.5);
+  return picture->WritePng(path);
 }
 
 }  // namespace
@@ -157,12 +144,19 @@ Result<Report> RunCalibrateJob(const LoadedJob& job, const RunOptions& options) 
   INSITU_RETURN_IF_ERROR(ReadSpec(job, &spec, &config));
   auto previous = calib::LoadCalibration(spec.machine.calibration_path);
   if (!previous.ok()) return previous.status().Prefixed(job.path + ": machine.calibration");
-  INSITU_ASSIGN_OR_RETURN(hw::Machine machine, hw::CreateMachine(config));
+  INSITU_ASSIGN_OR_RETURN(
+      hw::Machine machine,
+      OpenCell(config, options,
+               {hw::Role::kScanner, hw::Role::kCamera, hw::Role::kStage, hw::Role::kOperator},
+               job));
   const hw::CameraInfo info = machine.camera->info();
-  INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir));
+  INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir, machine.warnings));
   const std::filesystem::path dir(options.out_dir);
-  auto finish = [&](bool ok, const std::string& error) {
-    return FinishReport(report, ok, error, wall_start, options.out_dir, StatusCode::kFailedPrecondition);
+  // A failed measurement is failed_precondition; a device's fault, the operator's abort or a
+  // cancel keep their own code (exit 1 or 130, not 2: the input was fine).
+  auto finish = [&](bool ok, const std::string& error,
+                    StatusCode code = StatusCode::kFailedPrecondition) {
+    return FinishReport(report, ok, error, wall_start, options.out_dir, code);
   };
   auto log = Logger("job");
 
@@ -191,19 +185,19 @@ Result<Report> RunCalibrateJob(const LoadedJob& job, const RunOptions& options) 
   for (const Status& s : {machine.camera->SetBinning(1),
                           machine.camera->SetExposure(spec.board_exposure_ms * 1e3),
                           machine.stage->MoveTo(spec.board_stage_z_mm)}) {
-    if (!s.ok()) return finish(false, "intrinsics: " + s.ToString());
+    if (!s.ok()) return finish(false, "intrinsics: " + s.ToString(), s.code());
   }
   (void)machine.scanner->StopPointer();
   std::vector<std::vector<Eigen::Vector2d>> corners;
   PhaseProgress progress(options, "intrinsics", "board views", spec.views);
   const vision::ChessboardOptions board{spec.board.inner_cols, spec.board.inner_rows};
   for (int k = 0; k < spec.views; ++k) {
-    if (Cancelled(options)) return finish(false, "cancelled");
+    if (Cancelled(options)) return finish(false, "cancelled", StatusCode::kCancelled);
   const Status placed = machine.person->PlaceBoard(k, spec.views);
-    if (!placed.ok()) return finish(false, placed.ToString());
+    if (!placed.ok()) return finish(false, placed.ToString(), placed.code());
     auto frame = machine.camera->Grab();
-    if (!frame.ok()) return finish(false, frame.status().ToString());
-    auto found = vision::FindChessboard(View(*frame), board);
+    if (!frame.ok()) return finish(false, frame.status().ToString(), frame.status().code());
+    auto found = vision::FindChessboard(vision::ViewOf(*frame), board);
     if (found.ok()) {
       if (corners.empty()) {
         const Status s = SaveOverlay(*frame, *found, 0xd62728, (dir / "board_view.png").string());
@@ -215,7 +209,8 @@ Result<Report> RunCalibrateJob(const LoadedJob& job, const RunOptions& options) 
     }
     progress.Update(k + 1);
   }
-  (void)machine.person->RemoveBoard();
+  const Status removed = machine.person->RemoveBoard();
+  if (!removed.ok()) return finish(false, removed.ToString(), removed.code());
   calib::IntrinsicsSummary intr = calib::CalibrateIntrinsics(
       corners, spec.board, info.sensor_width_px, info.sensor_height_px, spec.intrinsics);
   report.metrics["intrinsics_views"] = intr.views;
@@ -237,9 +232,9 @@ Result<Report> RunCalibrateJob(const LoadedJob& job, const RunOptions& options) 
   // 2. Camera pose in the galvo frame: pointer spots on the bare stage plate at known
   // positions (a part would put them at unknown heights).
   const Status cleared = machine.person->ClearTable();
-  if (!cleared.ok()) return finish(false, cleared.ToString());
+  if (!cleared.ok()) return finish(false, cleared.ToString(), cleared.code());
   const Status exposed = machine.camera->SetExposure(spec.spot_exposure_ms * 1e3);
-  if (!exposed.ok()) return finish(false, "alignment: " + exposed.ToString());
+  if (!exposed.ok()) return finish(false, "alignment: " + exposed.ToString(), exposed.code());
   std::vector<calib::GalvoSpot> spots;
   const int per_level =
       static_cast<int>(std::pow(std::floor(2.0 * spec.spot_half_size_mm / spec.spot_step_mm + 1e-9) + 1, 2));
@@ -250,21 +245,21 @@ Result<Report> RunCalibrateJob(const LoadedJob& job, const RunOptions& options) 
   Frame last;
   for (double z : spec.spot_stage_z_mm) {
     const Status moved = machine.stage->MoveTo(z);
-    if (!moved.ok()) return finish(false, "alignment: " + moved.ToString());
+    if (!moved.ok()) return finish(false, "alignment: " + moved.ToString(), moved.code());
     (void)machine.scanner->StopPointer();
     auto dark = machine.camera->Grab();
-    if (!dark.ok()) return finish(false, dark.status().ToString());
+    if (!dark.ok()) return finish(false, dark.status().ToString(), dark.status().code());
     for (double x = -spec.spot_half_size_mm; x <= spec.spot_half_size_mm + 1e-9; x += spec.spot_step_mm) {
       for (double y = -spec.spot_half_size_mm; y <= spec.spot_half_size_mm + 1e-9; y += spec.spot_step_mm) {
-        if (Cancelled(options)) return finish(false, "cancelled");
+        if (Cancelled(options)) return finish(false, "cancelled", StatusCode::kCancelled);
         spotting.Update(spot_frames++);
         const Eigen::Vector3d p(x, y, z);
         const Status on = machine.scanner->StartPointerLine(p, p, 1.0);
-        if (!on.ok()) return finish(false, "alignment: " + on.ToString());
+        if (!on.ok()) return finish(false, "alignment: " + on.ToString(), on.code());
         machine.clock->SleepFor(0.005);
         auto lit = machine.camera->Grab();
-        if (!lit.ok()) return finish(false, lit.status().ToString());
-        auto spot = vision::FindSpot(View(*lit), View(*dark), {});
+        if (!lit.ok()) return finish(false, lit.status().ToString(), lit.status().code());
+        auto spot = vision::FindSpot(vision::ViewOf(*lit), vision::ViewOf(*dark), {});
         if (!spot.ok()) {
           report.warnings.push_back("spot at (" + std::to_string(x) + ", " + std::to_string(y) +
                                     ", " + std::to_string(z) + "): " + spot.status().message());
@@ -312,18 +307,20 @@ Result<Report> RunCalibrateJob(const LoadedJob& job, const RunOptions& options) 
     int done = 0;
     for (double z : zs) {
       const Status moved = machine.stage->MoveTo(z);
-      if (!moved.ok()) return finish(false, "height calibration: " + moved.ToString());
+      if (!moved.ok()) {
+        return finish(false, "height calibration: " + moved.ToString(), moved.code());
+      }
       for (double x : xs) {
-        if (Cancelled(options)) return finish(false, "cancelled");
+        if (Cancelled(options)) return finish(false, "cancelled", StatusCode::kCancelled);
         const Status on = machine.scanner->StartPointerLine({x, spec.y_start_mm, 0.0},
                                                             {x, spec.y_end_mm, 0.0},
                                                             spec.speed_mm_per_s);
-        if (!on.ok()) return finish(false, "height calibration: " + on.ToString());
+        if (!on.ok()) return finish(false, "height calibration: " + on.ToString(), on.code());
         machine.clock->SleepFor(0.005);
         auto frame = machine.camera->Grab();
-        if (!frame.ok()) return finish(false, frame.status().ToString());
-        const Status ex = extractor.Extract(View(*frame), &stripe);
-        if (!ex.ok()) return finish(false, ex.ToString());
+        if (!frame.ok()) return finish(false, frame.status().ToString(), frame.status().code());
+        const Status ex = extractor.Extract(vision::ViewOf(*frame), &stripe);
+        if (!ex.ok()) return finish(false, ex.ToString(), ex.code());
         calib::HeightObservation o{x, z, {}};
         const double b = frame->binning;
         for (size_t k = 0; k < stripe.status.size(); ++k) {
@@ -355,8 +352,10 @@ Result<Report> RunCalibrateJob(const LoadedJob& job, const RunOptions& options) 
   set.created = report.started;
   set.camera = intr.intrinsics;
   set.galvo.camera_from_galvo = align.camera_from_galvo;
-  const Status saved = SaveMeasuredCalibration(set, spec.output_path, options.out_dir, &report);
-  if (!saved.ok()) return finish(false, saved.ToString());
+  const Status saved = SaveMeasuredCalibration(
+      set, OutputPath(spec.output_path, "output.calibration", options, &report.warnings),
+      options.out_dir, &report);
+  if (!saved.ok()) return finish(false, saved.ToString(), saved.code());
   return finish(true, "");
 }
 

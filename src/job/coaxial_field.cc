@@ -27,6 +27,7 @@
 #include <limits>
 
 #include "insitu/core/log.h"
+#include "insitu/core/robust.h"
 #include "job/progress.h"
 
 namespace insitu::job {
@@ -43,13 +44,6 @@ std::string Num(double v, int digits = 3) {
 
 std::string At(const Vector3d& c) {
   return "(" + Num(c.x(), 3) + ", " + Num(c.y(), 3) + ", " + Num(c.z(), 3) + ") mm";
-}
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
 }
 
 Eigen::Matrix2d Rot(double a) { return Eigen::Rotation2Dd(a).toRotationMatrix(); }
@@ -303,9 +297,7 @@ Result<CoaxialFieldResult> MeasureCoaxialField(hw::Machine& machine, const Coaxi
     INSITU_ASSIGN_OR_RETURN(Frame frame, coax.Grab());
     ++result.frames;
     progress.Update(result.frames);
-    const vision::ImageView view{frame.bytes.data(), frame.width, frame.height,
-                                 frame.stride_bytes(), frame.bit_depth};
-    auto found = vision::FindCrosses(view, o.crosses);
+    auto found = vision::FindCrosses(vision::ViewOf(frame), o.crosses);
     if (!found.ok()) return found.status().Prefixed("coaxial field at " + At(cmd));
     auto fit =
         FitFrame(*found, frame.width, frame.height, o, have_lattice ? &lattice_ref : nullptr);

@@ -5,9 +5,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 #include <sstream>
 
 #include "insitu/core/file.h"
@@ -15,15 +12,23 @@
 #include "insitu/fit/field_data.h"
 #include "insitu/job/cor_reading.h"
 #include "insitu/pattern/correction_table.h"
+#include "insitu/vision/canvas.h"
 
 namespace insitu::job {
 namespace {
 
+constexpr int kArrow = 0xC83C28;  // residual arrows and their scale bar
+
 // One panel of the quiver plot: commanded points, residual arrows scaled so the longest is a
 // tenth of the field's span, the scale written under it.
-void DrawPanel(cv::Mat& img, const cv::Rect& area, const fit::FieldData& data,
+// A rectangle of pixels [x, x + width) x [y, y + height).
+struct Box {
+  int x, y, width, height;
+};
+
+void DrawPanel(vision::Canvas& img, const Box& area, const fit::FieldData& data,
                const std::vector<Eigen::Vector2d>& residual, const std::string& title) {
-  cv::rectangle(img, area, cv::Scalar(200, 200, 200), 1);
+  img.Rectangle(area.x, area.y, area.width, area.height, {.rgb = 0xC8C8C8});
   Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e300), hi = -lo;
   for (const auto& p : data.points) {
     lo = lo.cwiseMin(p.cmd);
@@ -34,8 +39,8 @@ void DrawPanel(cv::Mat& img, const cv::Rect& area, const fit::FieldData& data,
   const double px_per_mm = (std::min(area.width, area.height) - 2.0 * margin) / span;
   const Eigen::Vector2d mid = 0.5 * (lo + hi);
   const auto to_px = [&](const Eigen::Vector2d& p) {
-    return cv::Point2d(area.x + 0.5 * area.width + (p.x() - mid.x()) * px_per_mm,
-                       area.y + 0.5 * area.height - (p.y() - mid.y()) * px_per_mm);  // y up
+    return Eigen::Vector2d(area.x + 0.5 * area.width + (p.x() - mid.x()) * px_per_mm,
+                           area.y + 0.5 * area.height - (p.y() - mid.y()) * px_per_mm);  // y up
   };
   double longest = 0.0;
   for (const auto& r : residual) longest = std::max(longest, r.norm());
@@ -49,31 +54,28 @@ void DrawPanel(cv::Mat& img, const cv::Rect& area, const fit::FieldData& data,
     }
   }
   for (size_t i = 0; i < data.points.size(); ++i) {
-    const cv::Point2d a = to_px(data.points[i].cmd);
-    const cv::Point2d b = to_px(data.points[i].cmd + gain * residual[i]);
-    cv::circle(img, a, 2, cv::Scalar(90, 90, 90), cv::FILLED, cv::LINE_AA);
-    cv::arrowedLine(img, a, b, cv::Scalar(40, 60, 200), 1, cv::LINE_AA, 0, 0.25);
+    const Eigen::Vector2d a = to_px(data.points[i].cmd);
+    const Eigen::Vector2d b = to_px(data.points[i].cmd + gain * residual[i]);
+    img.Circle(a, 2, {.rgb = 0x5A5A5A, .thickness = vision::kFill, .smooth = true});
+    img.Arrow(a, b, {.rgb = kArrow, .smooth = true}, 0.25);
   }
   double rms = 0.0;
   for (const auto& r : residual) rms += r.squaredNorm();
   rms = std::sqrt(rms / std::max<size_t>(1, residual.size()));
   char buf[200];
   // A long list of causes: the title shrinks to the panel's width.
-  int base = 0;
-  const double width = cv::getTextSize(title, cv::FONT_HERSHEY_SIMPLEX, 0.6, 1, &base).width;
+  const double width = vision::Canvas::MeasureText(title, 0.6).width;
   const double font = 0.6 * std::min(1.0, (area.width - 20) / std::max(1.0, width));
-  cv::putText(img, title, cv::Point(area.x + 10, area.y + 24), cv::FONT_HERSHEY_SIMPLEX, font,
-              cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  const vision::Pen text{.rgb = 0x000000, .smooth = true};
+  img.Text(title, Eigen::Vector2d(area.x + 10, area.y + 24), font, text);
   std::snprintf(buf, sizeof buf, "rms %.4f mm, longest %.4f mm; arrows x %g", rms, longest, gain);
-  cv::putText(img, buf, cv::Point(area.x + 10, area.y + area.height - 14), cv::FONT_HERSHEY_SIMPLEX,
-              0.5, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  img.Text(buf, Eigen::Vector2d(area.x + 10, area.y + area.height - 14), 0.5, text);
   // A scale bar: what 0.01 mm (or the longest residual's decade) looks like at that gain.
   const double bar_mm = std::pow(10.0, std::floor(std::log10(std::max(longest, 1e-9))));
-  const cv::Point2d s0(area.x + area.width - 80 - bar_mm * gain * px_per_mm, area.y + 40);
-  cv::line(img, s0, s0 + cv::Point2d(bar_mm * gain * px_per_mm, 0), cv::Scalar(40, 60, 200), 2);
+  const Eigen::Vector2d s0(area.x + area.width - 80 - bar_mm * gain * px_per_mm, area.y + 40);
+  img.Line(s0, s0 + Eigen::Vector2d(bar_mm * gain * px_per_mm, 0), {.rgb = kArrow, .thickness = 2});
   std::snprintf(buf, sizeof buf, "%g mm", bar_mm);
-  cv::putText(img, buf, s0 + cv::Point2d(0, 18), cv::FONT_HERSHEY_SIMPLEX, 0.45,
-              cv::Scalar(40, 60, 200), 1, cv::LINE_AA);
+  img.Text(buf, s0 + Eigen::Vector2d(0, 18), 0.45, {.rgb = kArrow, .smooth = true});
 }
 
 }  // namespace
@@ -132,9 +134,9 @@ Result<fit::Diagnosis> RunDiagnose(const std::string& csv_path, const std::strin
     INSITU_ASSIGN_OR_RETURN(fit::ModelExtension ext, fit::ModelExtension::FromDiagnosis(d));
     INSITU_RETURN_IF_ERROR(fit::SaveExtension(ext, csv_path, (dir / "extension.yaml").string()));
   }
-  cv::Mat img(620, 1240, CV_8UC3, cv::Scalar(255, 255, 255));
+  vision::Canvas img(1240, 620);
   // A table of moves: the nominal model is the command less the offset every move shares.
-  DrawPanel(img, cv::Rect(10, 10, 600, 600), data, d.residual_nominal,
+  DrawPanel(img, Box{10, 10, 600, 600}, data, d.residual_nominal,
             data.reference >= 0 ? "measured - nominal (command + the moves' common offset)"
                                 : "measured - commanded (nominal model)");
   std::string after = "measured - extended model";
@@ -143,10 +145,8 @@ Result<fit::Diagnosis> RunDiagnose(const std::string& csv_path, const std::strin
     for (size_t k = 0; k < d.cause.size(); ++k) after += (k ? " + " : "") + d.cause[k];
     after += ")";
   }
-  DrawPanel(img, cv::Rect(630, 10, 600, 600), data, d.residual_extended, after);
-  if (!cv::imwrite((dir / "residuals.png").string(), img)) {
-    return Status(StatusCode::kDeviceError, "cannot write " + (dir / "residuals.png").string());
-  }
+  DrawPanel(img, Box{630, 10, 600, 600}, data, d.residual_extended, after);
+  INSITU_RETURN_IF_ERROR(img.WritePng((dir / "residuals.png").string()));
   return d;
 }
 

@@ -31,9 +31,6 @@
 #include <optional>
 #include <sstream>
 
-#include <opencv2/core.hpp>
-#include <opencv2/imgproc.hpp>
-
 #include "insitu/calib/calibration.h"
 #include "insitu/calib/camera_calibration.h"
 #include "insitu/core/file.h"
@@ -45,8 +42,11 @@
 #include "insitu/pattern/spiral_target.h"
 #include "insitu/vision/circle_targets.h"
 #include "insitu/vision/crosses.h"
+#include "insitu/vision/resample.h"
 #include "insitu/vision/targets.h"
+#include "job/cell.h"
 #include "job/coaxial_field.h"
+#include "job/output_path.h"
 #include "job/progress.h"
 #include "job/save_calibration.h"
 
@@ -204,10 +204,6 @@ Status ReadSpec(const LoadedJob& job, FieldSpec* s, hw::MachineConfig* machine) 
   return MachineConfigFor(job, s->machine, machine);
 }
 
-vision::ImageView View(const Frame& f) {
-  return {f.bytes.data(), f.width, f.height, f.stride_bytes(), f.bit_depth};
-}
-
 struct Target {
   Vector2d nominal;         // where it is asked for, galvo frame
   bool check = false;
@@ -306,7 +302,7 @@ Status MeasureTargets(const Frame& frame, const calib::CameraIntrinsics& cam,
                       std::vector<std::string>* warnings, int* found) {
   std::vector<vision::RejectedBlob> rejected;
   INSITU_ASSIGN_OR_RETURN(std::vector<vision::CircleTarget> blobs,
-                          vision::FindCircleTargets(View(frame), options, &rejected));
+                          vision::FindCircleTargets(vision::ViewOf(frame), options, &rejected));
   std::vector<Vector2d> blob_px;
   for (const vision::CircleTarget& b : blobs) blob_px.push_back(b.centroid_px);
   std::vector<bool> used(blobs.size(), false);
@@ -369,9 +365,7 @@ Status MeasureCrossTargets(const Frame& frame, const calib::CameraIntrinsics& ca
                            const Eigen::Isometry3d& camera_from_galvo_guess, double pitch_mm,
                            const pattern::CrossTargetOptions& cross, std::vector<Target>* targets,
                            std::vector<std::string>* warnings, int* found) {
-  const int type = frame.bit_depth == 8 ? CV_8UC1 : CV_16UC1;
-  const cv::Mat image(frame.height, frame.width, type, const_cast<uint8_t*>(frame.bytes.data()),
-                      frame.stride_bytes());
+  const vision::ImageView image = vision::ViewOf(frame);
   const Eigen::Isometry3d plate_from_galvo = camera_from_plate.inverse() * camera_from_galvo_guess;
   const auto pixel_of = [&](const Vector2d& plate_mm) {
     return cam.Project(camera_from_plate * Vector3d(plate_mm.x(), plate_mm.y(), 0.0));
@@ -390,24 +384,22 @@ Status MeasureCrossTargets(const Frame& frame, const calib::CameraIntrinsics& ca
     const double mm_per_px = 1.0 / px_per_mm;
     const int half = static_cast<int>(std::ceil(0.5 * pitch_mm * px_per_mm));
     const int size = 2 * half + 1;
-    cv::Mat map_u(size, size, CV_32FC1), map_v(size, size, CV_32FC1);
+    vision::PixelMap map{size, size, {}, {}};
     for (int r = 0; r < size; ++r) {
       for (int c = 0; c < size; ++c) {
         const Vector2d q = pixel_of(centre + mm_per_px * Vector2d(c - half, r - half));
-        map_u.at<float>(r, c) = static_cast<float>(q.x());
-        map_v.at<float>(r, c) = static_cast<float>(q.y());
+        map.u.push_back(static_cast<float>(q.x()));
+        map.v.push_back(static_cast<float>(q.y()));
       }
     }
-    cv::Mat patch;
-    cv::remap(image, patch, map_u, map_v, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0));
+    INSITU_ASSIGN_OR_RETURN(const vision::Image patch, vision::Remap(image, map));
     vision::CrossOptions options;
     options.bright = true;  // marks on black anodising scatter more light than the plate
     // A bar's image: its width plus the camera's blur (~2 px) and the resampling's pixel.
     options.max_line_width_px = cross.bar_width_mm * px_per_mm + 4.0;
     options.min_bar_px = 0.6 * cross.length_mm * px_per_mm;
     options.max_bar_px = 1.5 * cross.length_mm * px_per_mm + 4.0;
-    const vision::ImageView view{patch.data, patch.cols, patch.rows, patch.step[0], frame.bit_depth};
-    auto crosses = vision::FindCrosses(view, options);
+    auto crosses = vision::FindCrosses(patch.view(), options);
     if (!crosses.ok()) return crosses.status();
     const vision::Cross* best = nullptr;
     double best_d = 0.4 * pitch_mm * px_per_mm;
@@ -472,7 +464,16 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
   auto previous = calib::LoadCalibration(spec.machine.calibration_path);
   if (!previous.ok()) return previous.status().Prefixed(job.path + ": machine.calibration");
   INSITU_ASSIGN_OR_RETURN(const Strokes shape, TargetStrokes(spec));
-  INSITU_ASSIGN_OR_RETURN(hw::Machine machine, hw::CreateMachine(config));
+  // The side route marks a fresh plate the operator lays at the stage's zero; the coaxial route
+  // looks through the head at a plate already there.
+  INSITU_ASSIGN_OR_RETURN(
+      hw::Machine machine,
+      spec.route == "coaxial"
+          ? OpenCell(config, options, {hw::Role::kScanner, hw::Role::kCamera, hw::Role::kCoaxial},
+                     job)
+          : OpenCell(config, options,
+                     {hw::Role::kScanner, hw::Role::kCamera, hw::Role::kStage, hw::Role::kOperator},
+                     job));
   const hw::CameraInfo info = machine.camera->info();
   INSITU_RETURN_IF_ERROR(calib::CheckCameraMatches(previous->camera, info.model, info.serial,
                                                    info.sensor_width_px, info.sensor_height_px)
@@ -494,7 +495,7 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
       }
     }
   }
-  INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir));
+  INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir, machine.warnings));
   const std::filesystem::path dir(options.out_dir);
   // A failed measurement is failed_precondition; a device's fault or a cancel keeps its own
   // code (exit 1 or 130, not 2: the input was fine).
@@ -582,14 +583,16 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
   }
   const Status laid = machine.person->PlaceBoardOnPlate();
   if (!laid.ok()) {
-    return finish(false, "no plate plane: the board could not be laid on the plate: " +
-                             laid.ToString());
+    return finish(false,
+                  "no plate plane: the board could not be laid on the plate: " + laid.ToString(),
+                  laid.code());
   }
   auto board_frame = machine.camera->Grab();
   if (!board_frame.ok()) return fail("plate: ", board_frame.status());
-  auto corners = vision::FindChessboard(View(*board_frame),
+  auto corners = vision::FindChessboard(vision::ViewOf(*board_frame),
                                         {spec.board.inner_cols, spec.board.inner_rows});
-  (void)machine.person->RemoveBoard();
+  const Status removed = machine.person->RemoveBoard();
+  if (!removed.ok()) return fail("plate: ", removed);
   if (!corners.ok()) {
     return finish(false, "no plate plane: the board lying on the plate was not found: " +
                              corners.status().message());
@@ -625,7 +628,7 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
       machine.clock->SleepFor(0.005);
       auto lit = machine.camera->Grab();
       if (!lit.ok()) return lit.status();
-      auto spot = vision::FindSpot(View(*lit), View(*dark), {});
+      auto spot = vision::FindSpot(vision::ViewOf(*lit), vision::ViewOf(*dark), {});
       progress.Update(static_cast<double>(k + 1));
       if (!spot.ok()) {
         report.warnings.push_back(phase + " at (" + Num(p.x(), 2) + ", " + Num(p.y(), 2) +
@@ -1033,7 +1036,9 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
   plate_from_galvo.linear().topLeftCorner<2, 2>() = pg.linear();
   plate_from_galvo.translation().head<2>() = pg.translation();
   set.galvo.camera_from_galvo = plate.camera_from_plate * plate_from_galvo;
-  const Status saved = SaveMeasuredCalibration(set, spec.output_path, options.out_dir, &report);
+  const Status saved = SaveMeasuredCalibration(
+      set, OutputPath(spec.output_path, "output.calibration", options, &report.warnings),
+      options.out_dir, &report);
   if (!saved.ok()) return fail("", saved);
   return finish(true, "");
 }

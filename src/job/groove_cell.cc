@@ -7,6 +7,7 @@
 
 #include <Eigen/Geometry>
 
+#include "insitu/core/robust.h"
 #include "insitu/job/job_file.h"
 #include "job/format.h"
 
@@ -16,14 +17,6 @@ namespace {
 constexpr double kDeg = M_PI / 180.0;
 
 bool Cancelled(const std::atomic<bool>* cancel) { return cancel != nullptr && cancel->load(); }
-
-// Median of the finite values of `v` (NaN when none).
-double MedianOf(std::vector<double> v) {
-  if (v.empty()) return NAN;
-  const size_t mid = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(mid), v.end());
-  return v[mid];
-}
 
 // The rims of a hole one profile crosses: walking out from the hole's centre (sensor x
 // `centre`) either way, the first point that stands above half the step from the panel's top
@@ -44,7 +37,7 @@ bool RimsInProfile(const hw::RangeProfile& p, double centre, double radius, doub
     *why = "no top seen around the hole (" + std::to_string(ring.size()) + " points)";
     return false;
   }
-  const double top = MedianOf(ring), below = MedianOf(inside);
+  const double top = Median(ring), below = Median(inside);
   // Half the step to what the hole shows; a wall of at least 0.2 mm where it shows nothing (the
   // stage out of range, or in the rim's shadow).
   const double threshold =
@@ -286,7 +279,7 @@ Result<DatumResult> MeasureDatums(hw::Axis& axis, hw::Profiler& profiler,
   }
   out.rim_rms_mm = std::sqrt(ss / out.rim_points);
   out.frame = PanelFrame::FromHoles(out.hole_mm[0], out.hole_mm[1],
-                                    (spec.hole_b_mm - spec.hole_a_mm).norm(), MedianOf(tops));
+                                    (spec.hole_b_mm - spec.hole_a_mm).norm(), Median(tops));
   return out;
 }
 

@@ -8,9 +8,9 @@
 #include <string>
 
 #include <Eigen/Dense>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 
+#include "insitu/core/robust.h"
+#include "insitu/vision/canvas.h"
 #include "job/line_ends.h"
 
 namespace insitu::job {
@@ -37,11 +37,6 @@ Status InsertSpec::Validate() const {
 }
 
 namespace {
-
-double Median(std::vector<double> v) {
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
 
 // A line n . p = c with |n| = 1.
 struct Line2 {
@@ -354,11 +349,12 @@ Status SaveInsertPicture(const geometry::Cloud& cloud, const InsertResult& r,
   const int top_margin = 70;
   const int w = static_cast<int>((hi.x() - lo.x()) * kScale);
   const int h = static_cast<int>((hi.y() - lo.y()) * kScale) + top_margin;
-  cv::Mat img(h, w, CV_8UC3, cv::Scalar(255, 255, 255));
-  // +y up in the picture, as seen from above.
+  vision::Canvas img(w, h);
+  // +y up in the picture, as seen from above; whole pixels.
   auto px = [&](const Eigen::Vector2d& p) {
-    return cv::Point(static_cast<int>(std::lround((p.x() - lo.x()) * kScale)),
-                     top_margin + static_cast<int>(std::lround((hi.y() - p.y()) * kScale)));
+    return Eigen::Vector2d(
+        static_cast<int>(std::lround((p.x() - lo.x()) * kScale)),
+        top_margin + static_cast<int>(std::lround((hi.y() - p.y()) * kScale)));
   };
   const double z0 = r.plate_z_mm, z1 = r.plate_z_mm + 1.1 * spec.thickness_mm;
   for (const auto& p : cloud) {
@@ -366,37 +362,32 @@ Status SaveInsertPicture(const geometry::Cloud& cloud, const InsertResult& r,
     if ((q.array() < lo.array()).any() || (q.array() > hi.array()).any()) continue;
     const double t = std::clamp((p.point_in_galvo.z() - z0) / (z1 - z0), 0.0, 1.0);
     const int g = static_cast<int>(225 - 160 * t);
-    cv::circle(img, px(q), 1, cv::Scalar(g, g, g), cv::FILLED);
+    img.Circle(px(q), 1, {.rgb = g << 16 | g << 8 | g, .thickness = vision::kFill});
   }
-  for (const auto& q : r.outline_points) cv::circle(img, px(q), 2, cv::Scalar(200, 90, 0), 1);
-  for (const auto& q : r.hole_points_mm) cv::circle(img, px(q), 2, cv::Scalar(0, 150, 0), 1);
-  const cv::Scalar red(0, 0, 220);
+  for (const auto& q : r.outline_points) img.Circle(px(q), 2, {.rgb = 0x005AC8});
+  for (const auto& q : r.hole_points_mm) img.Circle(px(q), 2, {.rgb = 0x009600});
+  const vision::Pen red{.rgb = 0xDC0000, .smooth = true};
   for (int i = 0; i < 3; ++i) {
     const Eigen::Vector2d& a = r.corners_mm[(i + 2) % 3];
     const Eigen::Vector2d& b = r.corners_mm[i];
-    cv::line(img, px(a), px(b), red, 1, cv::LINE_AA);
+    img.Line(px(a), px(b), red);
     char label[64];
     std::snprintf(label, sizeof label, "L%d %.3f", i + 1, r.edge_mm[i]);
     const Eigen::Vector2d mid = 0.5 * (a + b);
     const Eigen::Vector2d centre = (r.corners_mm[0] + r.corners_mm[1] + r.corners_mm[2]) / 3.0;
     const Eigen::Vector2d at = mid + 1.2 * (mid - centre).normalized();
-    cv::putText(img, label, px(at) - cv::Point(50, 0), cv::FONT_HERSHEY_SIMPLEX, 0.5, red, 1,
-                cv::LINE_AA);
+    img.Text(label, px(at) - Eigen::Vector2d(50, 0), 0.5, red);
   }
-  cv::circle(img, px(r.hole_center_mm), static_cast<int>(0.5 * r.hole_diameter_mm * kScale), red,
-             1, cv::LINE_AA);
+  img.Circle(px(r.hole_center_mm), static_cast<int>(0.5 * r.hole_diameter_mm * kScale), red);
   char text[200];
   std::snprintf(text, sizeof text, "insert: thickness %.3f mm, hole D %.3f mm", r.thickness_mm,
                 r.hole_diameter_mm);
-  cv::putText(img, text, {10, 25}, cv::FONT_HERSHEY_SIMPLEX, 0.55, cv::Scalar(0, 0, 0), 1,
-              cv::LINE_AA);
+  img.Text(text, Eigen::Vector2d(10, 25), 0.55, {.rgb = 0x000000, .smooth = true});
   std::snprintf(text, sizeof text,
                 "nominal %.2f / %.2f / %.2f mm; blue: outline, green: hole edge points",
                 spec.thickness_mm, spec.edge_mm, spec.hole_diameter_mm);
-  cv::putText(img, text, {10, 50}, cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(60, 60, 60), 1,
-              cv::LINE_AA);
-  if (!cv::imwrite(path, img)) return DeviceError("cannot write " + path);
-  return Status::Ok();
+  img.Text(text, Eigen::Vector2d(10, 50), 0.45, {.rgb = 0x3C3C3C, .smooth = true});
+  return img.WritePng(path);
 }
 
 }  // namespace insitu::job

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "insitu/core/log.h"
+#include "insitu/core/robust.h"
 #include "insitu/geometry/cloud.h"
 #include "insitu/geometry/surface.h"
 #include "insitu/inspect/contours.h"
@@ -17,9 +18,11 @@
 #include "insitu/job/plot.h"
 #include "insitu/pattern/mark_plan.h"
 #include "insitu/pattern/vector.h"
+#include "job/cell.h"
 #include "job/format.h"
 #include "job/groove_cell.h"
 #include "job/head_list.h"
+#include "job/output_path.h"
 #include "job/progress.h"
 #include "job/scan_job.h"
 
@@ -197,8 +200,7 @@ Result<PanelFrame> HolesInCloud(const geometry::Cloud& cloud, const GrooveJobSpe
                                                         "(%.2f, ...): scan over the pins",
                                                         static_cast<double>(ring.size()), pin.x()));
     }
-    std::nth_element(ring.begin(), ring.begin() + ring.size() / 2, ring.end());
-    const double top = ring[ring.size() / 2], threshold = top - 0.2;
+    const double top = MedianInPlace(ring), threshold = top - 0.2;
     std::map<int, std::vector<Eigen::Vector3d>> lines;
     for (const geometry::CloudPoint& p : cloud) {
       const Eigen::Vector2d q = p.point_in_galvo.head<2>().cast<double>();
@@ -220,9 +222,7 @@ Result<PanelFrame> HolesInCloud(const geometry::Cloud& cloud, const GrooveJobSpe
         gaps.push_back(on_top[i].y() - on_top[i - 1].y());
         if (gaps.back() > gaps[widest]) widest = i - 1;
       }
-      std::vector<double> sorted = gaps;
-      std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
-      const double spacing = sorted[sorted.size() / 2];
+      const double spacing = Median(gaps);
       // A chord shorter than a fifth of the diameter grazes the rim: its ends say little. A gap
       // that does not straddle the pin, or is longer than the hole, is no chord of it (points
       // the stripe's extraction left out, the scan's end).
@@ -248,9 +248,7 @@ Result<PanelFrame> HolesInCloud(const geometry::Cloud& cloud, const GrooveJobSpe
       // beyond 4 robust deviations of the others.
       std::vector<double> off;
       for (const auto& q : rim) off.push_back(std::abs((q - circle->centre).norm() - circle->radius));
-      std::vector<double> sorted = off;
-      std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
-      const double limit = 4.0 * 1.4826 * sorted[sorted.size() / 2] + 1e-3;
+      const double limit = 4.0 * kMadToSigma * Median(off) + 1e-3;
       std::vector<Eigen::Vector2d> kept;
       for (size_t i = 0; i < rim.size(); ++i) {
         if (off[i] <= limit) kept.push_back(rim[i]);
@@ -360,15 +358,15 @@ Result<Report> RunInspectGroovesJob(const LoadedJob& job, const RunOptions& opti
       block = std::move(*b);
     }
   }
-  INSITU_ASSIGN_OR_RETURN(ScanMachine up, BringUp(job, spec, config));
+  INSITU_ASSIGN_OR_RETURN(ScanMachine up, BringUp(job, spec, config, options));
   hw::Machine& m = up.machine;
-  if (g.inspect && (m.axis == nullptr || m.profiler == nullptr)) {
-    return FailedPrecondition(job.path + ": inspect: the cell has no " +
-                              std::string(m.axis == nullptr ? "axis" : "line profiler") +
-                              " (inspect.enabled: false engraves only)");
+  if (g.inspect) {
+    INSITU_RETURN_IF_ERROR(m.Require({hw::Role::kAxis, hw::Role::kProfiler},
+                                     job.path + ": inspect (inspect.enabled: false engraves "
+                                                "only)"));
   }
 
-  INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir));
+  INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir, m.warnings));
   const fs::path dir(options.out_dir);
   auto log = Logger("job");
   auto finish = [&](bool ok, const std::string& error) {
@@ -827,12 +825,9 @@ Result<Report> RunCalibrateProfilerJob(const LoadedJob& job, const RunOptions& o
   INSITU_RETURN_IF_ERROR(MachineConfigFor(job, machine, &config));
   auto block = BlockOf(p);
   if (!block.ok()) return block.status().Prefixed(job.path + ": profiler.block");
-  INSITU_ASSIGN_OR_RETURN(hw::Machine m, hw::CreateMachine(config));
-  if (m.axis == nullptr || m.profiler == nullptr) {
-    return FailedPrecondition(job.path + ": the cell has no " +
-                              std::string(m.axis == nullptr ? "axis" : "line profiler"));
-  }
-  INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir));
+  INSITU_ASSIGN_OR_RETURN(
+      hw::Machine m, OpenCell(config, options, {hw::Role::kAxis, hw::Role::kProfiler}, job));
+  INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir, m.warnings));
   const fs::path dir(options.out_dir);
   PhaseProgress progress(options, "block", "steps", 1);
   auto cal = CalibrateMountOnBlock(*m.axis, *m.profiler, *block, MountFromPose(p.drawing),
@@ -842,8 +837,11 @@ Result<Report> RunCalibrateProfilerJob(const LoadedJob& job, const RunOptions& o
                         wall_start, options.out_dir, StatusCode::kDeviceError);
   }
   progress.Update(1);
-  const std::string path = mount_file.empty() ? (dir / "mount.yaml").string()
-                                              : ResolvePath(job.folder, mount_file);
+  const std::string path =
+      mount_file.empty()
+          ? (dir / "mount.yaml").string()
+          : OutputPath(ResolvePath(job.folder, mount_file), "output.mount_file", options,
+                       &report.warnings);
   const Status saved = SaveMount(*cal, m.profiler->info(), path);
   if (!saved.ok()) {
     return FinishReport(report, false, saved.ToString(), wall_start, options.out_dir,

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "insitu/core/robust.h"
+
 namespace insitu::job {
 
 void SortAlongLine(std::vector<LinePoint>* points) {
@@ -14,8 +16,7 @@ double MedianSpacing(const std::vector<LinePoint>& points, int first, int last) 
   std::vector<double> gaps;
   for (int i = first + 1; i <= last; ++i) gaps.push_back(points[i].y - points[i - 1].y);
   if (gaps.empty()) return 0.0;
-  std::nth_element(gaps.begin(), gaps.begin() + gaps.size() / 2, gaps.end());
-  return gaps[gaps.size() / 2];
+  return MedianInPlace(gaps);
 }
 
 double HalfBrightnessEnd(const std::vector<LinePoint>& points, int end, int dir, double spacing,
@@ -31,8 +32,7 @@ double HalfBrightnessEnd(const std::vector<LinePoint>& points, int end, int dir,
     ref.push_back(points[i].intensity);
   }
   if (ref.empty()) return points[end].y;
-  std::nth_element(ref.begin(), ref.begin() + ref.size() / 2, ref.end());
-  const double half = 0.5 * ref[ref.size() / 2];
+  const double half = 0.5 * MedianInPlace(ref);
   int k = end;  // first point from the end at or above half brightness
   while (k != end + dir * kSkip && inside(k) && points[k].intensity < half) k += dir;
   if (!inside(k)) return points[end].y;

@@ -10,9 +10,6 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <numeric>
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 #include <random>
 
 #include "insitu/core/file.h"
@@ -20,6 +17,8 @@
 #include "insitu/fit/group_model.h"
 #include "insitu/geometry/triangulation.h"
 #include "insitu/job/scan.h"
+#include "insitu/vision/canvas.h"
+#include "job/output_path.h"
 #include "job/progress.h"
 #include "job/scan_job.h"
 
@@ -308,7 +307,7 @@ Status SaveResidualMap(const std::vector<Vector3d>& points, const std::vector<do
                        const std::vector<double>& after, const std::string& title_after,
                        const std::string& path) {
   const int w = 600, h = 600, pad = 50;
-  cv::Mat img(h + 40, 2 * w + 20, CV_8UC3, cv::Scalar(255, 255, 255));
+  vision::Canvas img(2 * w + 20, h + 40);
   Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
   for (const Vector3d& p : points) {
     lo = lo.cwiseMin(p.head<2>());
@@ -320,22 +319,21 @@ Status SaveResidualMap(const std::vector<Vector3d>& points, const std::vector<do
   const double sx = (w - 2 * pad) / std::max(1e-6, hi.x() - lo.x());
   const double sy = (h - 2 * pad) / std::max(1e-6, hi.y() - lo.y());
   const auto panel = [&](int x0, const std::vector<double>& r, const std::string& title) {
-    cv::rectangle(img, cv::Rect(x0, 0, w, h), cv::Scalar(200, 200, 200));
+    img.Rectangle(x0, 0, w, h, {.rgb = 0xC8C8C8});
     for (size_t k = 0; k < points.size() && k < r.size(); ++k) {
       const double t = std::clamp(r[k] / span, -1.0, 1.0);
-      const cv::Scalar c = t >= 0 ? cv::Scalar(255 * (1 - t), 255 * (1 - t), 255)
-                                  : cv::Scalar(255, 255 * (1 + t), 255 * (1 + t));
-      const cv::Point q(x0 + pad + static_cast<int>((points[k].x() - lo.x()) * sx),
-                        h - pad - static_cast<int>((points[k].y() - lo.y()) * sy));
-      cv::circle(img, q, 3, c, cv::FILLED, cv::LINE_AA);
+      const int c = t >= 0 ? vision::RgbOf(255, 255 * (1 - t), 255 * (1 - t))
+                           : vision::RgbOf(255 * (1 + t), 255 * (1 + t), 255);
+      const Vector2d q(x0 + pad + static_cast<int>((points[k].x() - lo.x()) * sx),
+                       h - pad - static_cast<int>((points[k].y() - lo.y()) * sy));
+      img.Circle(q, 3, {.rgb = c, .thickness = vision::kFill, .smooth = true});
     }
     double rms = 0;
     for (double v : r) rms += v * v;
     rms = r.empty() ? 0 : std::sqrt(rms / r.size());
     char buf[160];
     std::snprintf(buf, sizeof buf, "%s: rms %.4f mm", title.c_str(), rms);
-    cv::putText(img, buf, cv::Point(x0 + 10, 24), cv::FONT_HERSHEY_SIMPLEX, 0.5,
-                cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+    img.Text(buf, Vector2d(x0 + 10, 24), 0.5, {.rgb = 0x000000, .smooth = true});
   };
   panel(0, before, "height residual, as calibrated");
   panel(w + 20, after, title_after);
@@ -343,10 +341,8 @@ Status SaveResidualMap(const std::vector<Vector3d>& points, const std::vector<do
   std::snprintf(buf, sizeof buf,
                 "x right, y up over the gauge; colour: -%.3f mm (blue) .. +%.3f mm (red)", span,
                 span);
-  cv::putText(img, buf, cv::Point(10, h + 28), cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0),
-              1, cv::LINE_AA);
-  if (!cv::imwrite(path, img)) return DeviceError("cannot write " + path);
-  return Status::Ok();
+  img.Text(buf, Vector2d(10, h + 28), 0.5, {.rgb = 0x000000, .smooth = true});
+  return img.WritePng(path);
 }
 
 // The baseline's record of how its passes were focused.
@@ -451,10 +447,10 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
   hw::MachineConfig config;
   INSITU_RETURN_IF_ERROR(ReadSpec(job, &spec, &config));
   spec.scan.scan.binning = 1;
-  INSITU_ASSIGN_OR_RETURN(ScanMachine up, BringUp(job, spec.scan, config));
+  INSITU_ASSIGN_OR_RETURN(ScanMachine up, BringUp(job, spec.scan, config, options, {hw::Role::kStage}));
   hw::Machine& machine = up.machine;
   const calib::CalibrationSet& cal = up.calibration;
-  INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir));
+  INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir, machine.warnings));
   auto finish = [&](bool ok, const std::string& error,
                     StatusCode code = StatusCode::kFailedPrecondition) {
     return FinishReport(report, ok, error, wall_start, options.out_dir, code);
@@ -547,12 +543,14 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
       text += line;
       ss += r[k] * r[k];
     }
-    const Status saved = WriteFileAtomically(spec.baseline_path, text);
+    const std::string baseline_path =
+        OutputPath(spec.baseline_path, "diagnosis.baseline", options, &report.warnings);
+    const Status saved = WriteFileAtomically(baseline_path, text);
     if (!saved.ok()) return finish(false, "baseline: " + saved.ToString(), saved.code());
     const double rms = std::sqrt(ss / obs.size());
     report.metrics["observations"] = static_cast<double>(obs.size());
     report.metrics["baseline_rms_mm"] = rms;
-    report.artifacts["baseline"] = spec.baseline_path;
+    report.artifacts["baseline"] = baseline_path;
     // The diagnose keys, for the machine as calibrated: nothing to explain by definition.
     const nlohmann::ordered_json as_is_json = {{"rms_mm", rms}, {"cv_rms_mm", rms}};
     report.extra_json["n_points"] = std::to_string(obs.size());
@@ -563,7 +561,7 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
     report.extra_json["gain"] = "1";
     report.extra_json["unexplained"] = "false";
     log->info("diagnose_machine: baseline of {} bins recorded in {} ({:.1f} um rms)", obs.size(),
-              spec.baseline_path, 1e3 * rms);
+              baseline_path, 1e3 * rms);
     return finish(true, "");
   }
   {

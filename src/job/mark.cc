@@ -339,7 +339,7 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
       return Eigen::Vector3d(c.x(), c.y(), p.z());
     };
   }
-  INSITU_ASSIGN_OR_RETURN(ScanMachine up, BringUp(job, spec, machine_config));
+  INSITU_ASSIGN_OR_RETURN(ScanMachine up, BringUp(job, spec, machine_config, options));
   // A focus offset is taken along the marking beam (pattern::MarkSettings::beam_up).
   mark.laser.beam_up = [head = up.calibration.head.model](const Eigen::Vector3d& cmd) {
     optics::ChiefRay ray;
@@ -367,7 +367,7 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
     }
   }
 
-  INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir));
+  INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir, up.machine.warnings));
   if (bypassed_measured_head) {
     report.warnings.push_back(
         "head.correction / head.model_extension is used in place of the head the calibration "

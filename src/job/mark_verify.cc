@@ -5,22 +5,19 @@
 #include <cstdio>
 #include <filesystem>
 #include <map>
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 #include <optional>
+#include <utility>
 
 #include "insitu/core/log.h"
+#include "insitu/vision/canvas.h"
+#include "insitu/vision/difference.h"
 #include "insitu/vision/image.h"
+#include "insitu/vision/image_io.h"
 #include "insitu/vision/mark_inspection.h"
 #include "job/format.h"
 
 namespace insitu::job {
 namespace {
-
-vision::ImageView View(const Frame& f) {
-  return {f.bytes.data(), f.width, f.height, f.stride_bytes(), f.bit_depth};
-}
 
 // Aims the head (every beam off) at a point: a list of one jump.
 Status Aim(hw::Scanner& scanner, const Eigen::Vector3d& point_in_galvo) {
@@ -257,42 +254,24 @@ Status VerifyMarks(hw::Machine& machine, const calib::CalibrationSet& cal,
       }
     }
   }
+  // The pattern's window in the frame (its projection and a margin), clipped to the frame.
   const int margin = 25;
-  const cv::Rect roi =
-      cv::Rect(cv::Point(static_cast<int>(lo.x()) - margin, static_cast<int>(lo.y()) - margin),
-               cv::Point(static_cast<int>(hi.x()) + margin, static_cast<int>(hi.y()) + margin)) &
-      cv::Rect(0, 0, after.width, after.height);
-  if (before.width != after.width || before.height != after.height || roi.area() < 16) {
+  const int x0 = std::max(0, static_cast<int>(lo.x()) - margin);
+  const int y0 = std::max(0, static_cast<int>(lo.y()) - margin);
+  const int roi_w = std::max(0, std::min(after.width, static_cast<int>(hi.x()) + margin) - x0);
+  const int roi_h = std::max(0, std::min(after.height, static_cast<int>(hi.y()) + margin) - y0);
+  if (before.width != after.width || before.height != after.height || roi_w * roi_h < 16) {
     report->warnings.push_back(
         "placement not verified: the pattern is not in the side camera's view");
   } else {
-    cv::Mat b(before.height, before.width, before.bit_depth > 8 ? CV_16UC1 : CV_8UC1,
-              const_cast<uint8_t*>(before.bytes.data()));
-    cv::Mat a(after.height, after.width, after.bit_depth > 8 ? CV_16UC1 : CV_8UC1,
-              const_cast<uint8_t*>(after.bytes.data()));
-    cv::Mat diff;
-    cv::subtract(b(roi), a(roi), diff, cv::noArray(), CV_32F);
-    // Noise of the difference from its median absolute deviation (most of the
-    // window is unmarked); a mark is a 3 x 3 mean darker by 5 sigma of that
-    // mean.
-    std::vector<float> vals(diff.begin<float>(), diff.end<float>());
-    std::nth_element(vals.begin(), vals.begin() + vals.size() / 2, vals.end());
-    const float med = vals[vals.size() / 2];
-    for (float& v : vals) v = std::abs(v - med);
-    std::nth_element(vals.begin(), vals.begin() + vals.size() / 2, vals.end());
-    const double sigma = std::max(0.5, 1.4826 * vals[vals.size() / 2]);
-    cv::Mat smooth;
-    cv::blur(diff, smooth, cv::Size(3, 3));
+    const vision::ImageView after_roi = vision::ViewOf(after).Crop(x0, y0, roi_w, roi_h);
+    // A mark is where the window darkened beyond its noise (most of it is unmarked).
+    auto dark =
+        vision::FindDarkened(vision::ViewOf(before).Crop(x0, y0, roi_w, roi_h), after_roi);
+    if (!dark.ok()) return dark.status().Prefixed("verify: side camera");
     std::vector<Eigen::Vector2d> px;
-    std::vector<double> w;
-    for (int y = 0; y < diff.rows; ++y) {
-      for (int x = 0; x < diff.cols; ++x) {
-        if (smooth.at<float>(y, x) - med > 5.0 * sigma / 3.0) {
-          px.emplace_back(x + roi.x, y + roi.y);
-          w.push_back(diff.at<float>(y, x) - med);
-        }
-      }
-    }
+    for (const Eigen::Vector2d& p : dark->px) px.push_back(p + Eigen::Vector2d(x0, y0));
+    std::vector<double> w = std::move(dark->depth);
     std::vector<double> area;
     const auto xy = rays.Trace(px, z_mean, &area);
     // Each marked pixel belongs to the item whose footprint (+0.5 mm) holds it.
@@ -350,33 +329,36 @@ Status VerifyMarks(hw::Machine& machine, const calib::CalibrationSet& cal,
     }
     // mark.png: the side camera's view of the marks, 4x, with the design over
     // it.
-    cv::Mat view;
-    cv::Mat a8;
-    a(roi).convertTo(a8, CV_8U, after.bit_depth > 8 ? 255.0 / after.max_value() : 1.0);
-    cv::resize(a8, view, cv::Size(), 4.0, 4.0, cv::INTER_CUBIC);
-    cv::cvtColor(view, view, cv::COLOR_GRAY2BGR);
-    cv::Mat overlay = view.clone();
-    const auto to_view = [&](const Eigen::Vector2d& p) {
-      const Eigen::Vector2d q = rays.Project({p.x(), p.y(), z_mean});
-      return cv::Point(static_cast<int>(std::lround(4.0 * (q.x() - roi.x) + 1.5)),
-                       static_cast<int>(std::lround(4.0 * (q.y() - roi.y) + 1.5)));
-    };
-    for (const auto& item : design.items) {
-      for (const auto& s : item.placed) {
-        cv::line(overlay, to_view(s.a), to_view(s.b), cv::Scalar(0, 200, 0), 1, cv::LINE_AA);
+    Status saved = Status::Ok();
+    if (auto view = vision::Canvas::FromGray(after_roi, 4.0); view.ok()) {
+      vision::Canvas overlay = view->Clone();
+      const auto to_view = [&](const Eigen::Vector2d& p) {
+        const Eigen::Vector2d q = rays.Project({p.x(), p.y(), z_mean});
+        return Eigen::Vector2d(static_cast<int>(std::lround(4.0 * (q.x() - x0) + 1.5)),
+                               static_cast<int>(std::lround(4.0 * (q.y() - y0) + 1.5)));
+      };
+      constexpr int kGreen = 0x00C800, kRed = 0xFF0000;
+      for (const auto& item : design.items) {
+        for (const auto& s : item.placed) {
+          overlay.Line(to_view(s.a), to_view(s.b), {.rgb = kGreen, .smooth = true});
+        }
       }
+      view->Blend(overlay, 0.35);
+      for (size_t k = 0; k < n_items; ++k) {
+        view->Cross(to_view(design_c[k]), 24, {.rgb = kGreen, .thickness = 2});
+        if (total[k] > 0) view->Cross(to_view(c[k]), 24, {.rgb = kRed, .thickness = 2});
+      }
+      view->Text("design (green) over the side camera after marking; red: measured centre",
+                 Eigen::Vector2d(8, 20), 0.5, {.rgb = 0xFFFF00});
+      saved = view->WritePng((dir / "mark.png").string());
+    } else {
+      saved = view.status();
     }
-    cv::addWeighted(overlay, 0.35, view, 0.65, 0.0, view);
-    for (size_t k = 0; k < n_items; ++k) {
-      cv::drawMarker(view, to_view(design_c[k]), cv::Scalar(0, 200, 0), cv::MARKER_CROSS, 24, 2);
-      if (total[k] > 0)
-        cv::drawMarker(view, to_view(c[k]), cv::Scalar(0, 0, 255), cv::MARKER_CROSS, 24, 2);
+    if (saved.ok()) {
+      report->artifacts["mark"] = "mark.png";
+    } else {
+      report->warnings.push_back("mark.png: " + saved.message());
     }
-    cv::putText(view,
-                "design (green) over the side camera after marking; red: "
-                "measured centre",
-                cv::Point(8, 20), cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 255, 255), 1);
-    if (cv::imwrite((dir / "mark.png").string(), view)) report->artifacts["mark"] = "mark.png";
   }
 
   if (!machine.coaxial) {
@@ -428,11 +410,14 @@ Status VerifyMarks(hw::Machine& machine, const calib::CalibrationSet& cal,
       // each side.
       m.half_width_um = (half_width - 0.25 * item.spacing_mm) * 1e3;
       m.half_length_um = half_length * 1e3;
-      const auto r = vision::MeasureHatch(View(f), m);
+      const auto r = vision::MeasureHatch(vision::ViewOf(f), m);
       if (!saved) {
-        cv::Mat img(f.height, f.width, CV_8UC1, f.bytes.data());
-        if (cv::imwrite((dir / "coaxial.png").string(), img))
+        const Status written = vision::WritePng((dir / "coaxial.png").string(), vision::ViewOf(f));
+        if (written.ok()) {
           report->artifacts["coaxial"] = "coaxial.png";
+        } else {
+          report->warnings.push_back("coaxial.png: " + written.message());
+        }
         saved = true;
       }
       if (!r.ok()) {
@@ -495,7 +480,7 @@ Status VerifyMarks(hw::Machine& machine, const calib::CalibrationSet& cal,
       // The image centre, 0.5 mm square: the marks right at the point.
       const int half = static_cast<int>(250.0 / o.coaxial_pixel_um);
       sharp.push_back(
-          vision::Sharpness(View(*f), {0.5 * (f->width - 1), 0.5 * (f->height - 1)}, half));
+          vision::Sharpness(vision::ViewOf(*f), {0.5 * (f->width - 1), 0.5 * (f->height - 1)}, half));
     }
     const auto best = ok ? vision::BestFocus(zs, sharp)
                          : Result<double>(FailedPrecondition("sweep left the focus range"));

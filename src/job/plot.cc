@@ -5,14 +5,22 @@
 #include <cstdio>
 #include <limits>
 
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
+#include <Eigen/Core>
+
+#include "insitu/vision/canvas.h"
 
 namespace insitu::job {
 namespace {
 
-cv::Scalar Bgr(int rgb) { return cv::Scalar(rgb & 0xFF, (rgb >> 8) & 0xFF, (rgb >> 16) & 0xFF); }
+constexpr int kWhite = 0xFFFFFF, kBlack = 0x000000;
+
+// A pixel position from integer coordinates.
+Eigen::Vector2d Pt(int x, int y) { return Eigen::Vector2d(x, y); }
+
+// A rectangle of pixels [x, x + width) x [y, y + height).
+struct Box {
+  int x, y, width, height;
+};
 
 // Tick step of 1, 2 or 5 x 10^k giving about `target` ticks over `range`.
 double NiceStep(double range, int target) {
@@ -90,8 +98,8 @@ Status SavePlotPng(const PlotSpec& spec, const std::string& path) {
 
   const int w = spec.width_px, h = spec.height_px;
   const int left = 90, right = 30, top = 60, bottom = 70;
-  const cv::Rect area(left, top, w - left - right, h - top - bottom);
-  cv::Mat img(h, w, CV_8UC3, cv::Scalar(255, 255, 255));
+  const Box area{left, top, w - left - right, h - top - bottom};
+  vision::Canvas img(w, h, kWhite);
   auto px = [&](double x) {
     return area.x + static_cast<int>(std::lround((x - xr.lo) / (xr.hi - xr.lo) * area.width));
   };
@@ -99,62 +107,56 @@ Status SavePlotPng(const PlotSpec& spec, const std::string& path) {
     return area.y + area.height -
            static_cast<int>(std::lround((y - yr.lo) / (yr.hi - yr.lo) * area.height));
   };
-  const cv::Scalar black(0, 0, 0), grid(225, 225, 225), grey(120, 120, 120);
-  const int font = cv::FONT_HERSHEY_SIMPLEX;
+  const vision::Pen black{.rgb = kBlack}, text{.rgb = kBlack, .smooth = true};
+  const vision::Pen grid{.rgb = 0xE1E1E1}, grey{.rgb = 0x787878};
 
   // Grid and tick labels.
   const double xs = NiceStep(xr.hi - xr.lo, 10), ys = NiceStep(yr.hi - yr.lo, 8);
   for (double x = std::ceil(xr.lo / xs) * xs; x <= xr.hi; x += xs) {
-    cv::line(img, {px(x), area.y}, {px(x), area.y + area.height}, grid, 1);
+    img.Line(Pt(px(x), area.y), Pt(px(x), area.y + area.height), grid);
     const std::string t = Label(x, xs);
-    int base = 0;
-    const cv::Size sz = cv::getTextSize(t, font, 0.45, 1, &base);
-    cv::putText(img, t, {px(x) - sz.width / 2, area.y + area.height + 20}, font, 0.45, black, 1,
-                cv::LINE_AA);
+    const vision::TextSize sz = vision::Canvas::MeasureText(t, 0.45);
+    img.Text(t, Pt(px(x) - sz.width / 2, area.y + area.height + 20), 0.45, text);
   }
   for (double y = std::ceil(yr.lo / ys) * ys; y <= yr.hi; y += ys) {
-    cv::line(img, {area.x, py(y)}, {area.x + area.width, py(y)}, grid, 1);
+    img.Line(Pt(area.x, py(y)), Pt(area.x + area.width, py(y)), grid);
     const std::string t = Label(y, ys);
-    int base = 0;
-    const cv::Size sz = cv::getTextSize(t, font, 0.45, 1, &base);
-    cv::putText(img, t, {area.x - sz.width - 8, py(y) + sz.height / 2}, font, 0.45, black, 1,
-                cv::LINE_AA);
+    const vision::TextSize sz = vision::Canvas::MeasureText(t, 0.45);
+    img.Text(t, Pt(area.x - sz.width - 8, py(y) + sz.height / 2), 0.45, text);
   }
-  cv::rectangle(img, area, black, 1);
+  img.Rectangle(area.x, area.y, area.width, area.height, black);
 
   // Reference lines, dashed.
   for (double r : spec.reference_y) {
     if (r < yr.lo || r > yr.hi) continue;
     for (int x = area.x; x < area.x + area.width; x += 12) {
-      cv::line(img, {x, py(r)}, {std::min(x + 6, area.x + area.width), py(r)}, grey, 1);
+      img.Line(Pt(x, py(r)), Pt(std::min(x + 6, area.x + area.width), py(r)), grey);
     }
   }
 
   // Series, clipped to the plot area; NaN breaks the line.
-  cv::Mat roi = img(area);
+  vision::Canvas roi = img.Region(area.x, area.y, area.width, area.height);
   for (const PlotSeries& s : spec.series) {
-    const cv::Scalar c = Bgr(s.rgb);
+    const vision::Pen pen{.rgb = s.rgb, .thickness = 2, .smooth = true};
     bool have_prev = false;
-    cv::Point prev;
+    Eigen::Vector2d prev;
     for (size_t i = 0; i < std::min(s.x.size(), s.y.size()); ++i) {
       if (!std::isfinite(s.x[i]) || !std::isfinite(s.y[i])) {
         have_prev = false;
         continue;
       }
-      const cv::Point p(px(s.x[i]) - area.x, py(s.y[i]) - area.y);
-      if (have_prev) cv::line(roi, prev, p, c, 2, cv::LINE_AA);
+      const Eigen::Vector2d p = Pt(px(s.x[i]) - area.x, py(s.y[i]) - area.y);
+      if (have_prev) roi.Line(prev, p, pen);
       prev = p;
       have_prev = true;
     }
   }
 
   // Title, axis labels, legend.
-  cv::putText(img, spec.title, {left, 35}, font, 0.65, black, 1, cv::LINE_AA);
-  int base = 0;
-  const cv::Size xl = cv::getTextSize(spec.x_label, font, 0.55, 1, &base);
-  cv::putText(img, spec.x_label, {area.x + area.width / 2 - xl.width / 2, h - 20}, font, 0.55,
-              black, 1, cv::LINE_AA);
-  cv::putText(img, spec.y_label, {10, top - 10}, font, 0.5, black, 1, cv::LINE_AA);
+  img.Text(spec.title, Pt(left, 35), 0.65, text);
+  const vision::TextSize xl = vision::Canvas::MeasureText(spec.x_label, 0.55);
+  img.Text(spec.x_label, Pt(area.x + area.width / 2 - xl.width / 2, h - 20), 0.55, text);
+  img.Text(spec.y_label, Pt(10, top - 10), 0.5, text);
   // The legend lists the series with a label (an unlabelled series is drawn, not listed).
   std::vector<const PlotSeries*> listed;
   for (const PlotSeries& s : spec.series) {
@@ -163,24 +165,21 @@ Status SavePlotPng(const PlotSpec& spec, const std::string& path) {
   if (!listed.empty()) {
     int lw = 0;
     for (const PlotSeries* s : listed) {
-      lw = std::max(lw, cv::getTextSize(s->label, font, 0.45, 1, &base).width);
+      lw = std::max(lw, vision::Canvas::MeasureText(s->label, 0.45).width);
     }
     const int lh = 20 * static_cast<int>(listed.size()) + 10;
-    const cv::Rect box(area.x + area.width - lw - 60, area.y + 10, lw + 50, lh);
-    cv::rectangle(img, box, cv::Scalar(255, 255, 255), cv::FILLED);
-    cv::rectangle(img, box, grey, 1);
+    const Box box{area.x + area.width - lw - 60, area.y + 10, lw + 50, lh};
+    img.Rectangle(box.x, box.y, box.width, box.height,
+                  {.rgb = kWhite, .thickness = vision::kFill});
+    img.Rectangle(box.x, box.y, box.width, box.height, grey);
     for (size_t i = 0; i < listed.size(); ++i) {
       const int y = box.y + 18 + 20 * static_cast<int>(i);
-      cv::line(img, {box.x + 8, y - 4}, {box.x + 32, y - 4}, Bgr(listed[i]->rgb), 2, cv::LINE_AA);
-      cv::putText(img, listed[i]->label, {box.x + 40, y}, font, 0.45, black, 1, cv::LINE_AA);
+      img.Line(Pt(box.x + 8, y - 4), Pt(box.x + 32, y - 4),
+               {.rgb = listed[i]->rgb, .thickness = 2, .smooth = true});
+      img.Text(listed[i]->label, Pt(box.x + 40, y), 0.45, text);
     }
   }
-  try {
-    if (!cv::imwrite(path, img)) return DeviceError("cannot write plot " + path);
-  } catch (const cv::Exception& e) {
-    return DeviceError("cannot write plot " + path + ": " + e.what());
-  }
-  return Status::Ok();
+  return img.WritePng(path);
 }
 
 Status SaveFieldArrowsPng(const FieldArrows& f, const std::string& path) {
@@ -205,34 +204,29 @@ Status SaveFieldArrowsPng(const FieldArrows& f, const std::string& path) {
   const double cx = 0.5 * (rx.lo + rx.hi), cy = 0.5 * (ry.lo + ry.hi);
   // Galvo y up, image v down.
   const auto px = [&](double x, double y) {
-    return cv::Point2d(0.5 * w + (x - cx) * scale, 40 + 0.5 * (h - 80) - (y - cy) * scale);
+    return Eigen::Vector2d(0.5 * w + (x - cx) * scale, 40 + 0.5 * (h - 80) - (y - cy) * scale);
   };
-  try {
-    cv::Mat img(h, w, CV_8UC3, cv::Scalar(255, 255, 255));
-    cv::putText(img, f.title, {20, 28}, cv::FONT_HERSHEY_SIMPLEX, 0.7, {0, 0, 0}, 2, cv::LINE_AA);
-    for (size_t i = 0; i < n; ++i) {
-      const bool chk = i < f.check.size() && f.check[i];
-      const cv::Scalar c = chk ? Bgr(0xd62728) : Bgr(0x1f77b4);
-      const cv::Point2d a = px(f.x_mm[i], f.y_mm[i]);
-      const cv::Point2d b = px(f.x_mm[i] + mag * f.dx_mm[i], f.y_mm[i] + mag * f.dy_mm[i]);
-      cv::circle(img, a, 3, c, cv::FILLED, cv::LINE_AA);
-      if (cv::norm(b - a) > 1.0) cv::arrowedLine(img, a, b, c, 2, cv::LINE_AA, 0, 0.25);
-    }
-    // Scale bar: a round error in um, drawn at the magnification.
-    const double bar_mm = NiceStep(max_err > 0 ? max_err : 1e-3, 1);
-    const cv::Point2d s0(margin, h - 30.0);
-    const cv::Point2d s1 = s0 + cv::Point2d(bar_mm * mag * scale, 0);
-    cv::line(img, s0, s1, {0, 0, 0}, 3, cv::LINE_AA);
-    char text[160];
-    std::snprintf(text, sizeof text, "%g um error (arrows x%.0f); blue: grid, red: check points; largest %.1f um",
-                  bar_mm * 1e3, mag, max_err * 1e3);
-    cv::putText(img, text, {static_cast<int>(s1.x) + 12, static_cast<int>(s0.y) + 6},
-                cv::FONT_HERSHEY_SIMPLEX, 0.5, {0, 0, 0}, 1, cv::LINE_AA);
-    if (!cv::imwrite(path, img)) return DeviceError("cannot write " + path);
-  } catch (const cv::Exception& e) {
-    return DeviceError("cannot write " + path + ": " + e.what());
+  vision::Canvas img(w, h, kWhite);
+  img.Text(f.title, Pt(20, 28), 0.7, {.rgb = kBlack, .thickness = 2, .smooth = true});
+  for (size_t i = 0; i < n; ++i) {
+    const bool chk = i < f.check.size() && f.check[i];
+    const int c = chk ? 0xd62728 : 0x1f77b4;
+    const Eigen::Vector2d a = px(f.x_mm[i], f.y_mm[i]);
+    const Eigen::Vector2d b = px(f.x_mm[i] + mag * f.dx_mm[i], f.y_mm[i] + mag * f.dy_mm[i]);
+    img.Circle(a, 3, {.rgb = c, .thickness = vision::kFill, .smooth = true});
+    if ((b - a).norm() > 1.0) img.Arrow(a, b, {.rgb = c, .thickness = 2, .smooth = true}, 0.25);
   }
-  return Status::Ok();
+  // Scale bar: a round error in um, drawn at the magnification.
+  const double bar_mm = NiceStep(max_err > 0 ? max_err : 1e-3, 1);
+  const Eigen::Vector2d s0(margin, h - 30.0);
+  const Eigen::Vector2d s1 = s0 + Eigen::Vector2d(bar_mm * mag * scale, 0);
+  img.Line(s0, s1, {.rgb = kBlack, .thickness = 3, .smooth = true});
+  char text[160];
+  std::snprintf(text, sizeof text, "%g um error (arrows x%.0f); blue: grid, red: check points; largest %.1f um",
+                bar_mm * 1e3, mag, max_err * 1e3);
+  img.Text(text, Pt(static_cast<int>(s1.x()) + 12, static_cast<int>(s0.y()) + 6), 0.5,
+           {.rgb = kBlack, .smooth = true});
+  return img.WritePng(path);
 }
 
 }  // namespace insitu::job

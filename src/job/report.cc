@@ -2,12 +2,12 @@
 
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <ctime>
 #include <filesystem>
-#include <fstream>
 
 #include <nlohmann/json.hpp>
+
+#include "insitu/core/file.h"
 
 namespace insitu::job {
 
@@ -44,25 +44,19 @@ Status WriteReport(const Report& report, const std::string& dir) {
   }
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
-  const std::string path = (std::filesystem::path(dir) / "report.json").string();
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::trunc);
-    if (!f) return NotFound("cannot write " + tmp);
-    f << j.dump(2) << "\n";
-    if (!f.good()) return DeviceError("write failed: " + tmp);
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) return DeviceError("cannot write " + path);
-  return Status::Ok();
+  return WriteFileAtomically((std::filesystem::path(dir) / "report.json").string(),
+                             j.dump(2) + "\n");
 }
 
-Result<Report> StartReport(const std::string& job_kind, const std::string& dir) {
+Result<Report> StartReport(const std::string& job_kind, const std::string& dir,
+                           const std::vector<std::string>& warnings) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) return NotFound("cannot create output folder " + dir + ": " + ec.message());
   Report report;
   report.job = job_kind;
   report.started = NowIso8601();
+  report.warnings = warnings;
   return report;
 }
 

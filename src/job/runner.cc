@@ -111,10 +111,11 @@ Result<Report> RunScanJob(const LoadedJob& job, const RunOptions& options) {
   ScanJobSpec spec;
   hw::MachineConfig machine_config;
   INSITU_RETURN_IF_ERROR(ReadScanKinds(job, &spec, &machine_config));
-  INSITU_ASSIGN_OR_RETURN(ScanMachine up, BringUp(job, spec, machine_config));
+  INSITU_ASSIGN_OR_RETURN(ScanMachine up, BringUp(job, spec, machine_config, options));
   hw::Machine& machine = up.machine;
   const calib::CalibrationSet& calibration = up.calibration;
-  INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir));
+  INSITU_ASSIGN_OR_RETURN(Report report,
+                          StartReport(job.kind, options.out_dir, machine.warnings));
 
   auto log = Logger("job");
   log->info("scan: {} lines x = {}..{} mm every {} mm, {} mm/s, exposure {} ms, calibration {}",
@@ -224,14 +225,36 @@ Result<Report> RunScanJob(const LoadedJob& job, const RunOptions& options) {
 
 }  // namespace
 
-std::vector<std::string> JobKinds() {
-  return {"scan", "accuracy", "calibrate", "field_calibration", "mark", "diagnose_machine",
-          "calibrate_profiler", "inspect_grooves"};
-}
-
 namespace {
 
-Status UnknownKind(const LoadedJob& job) {
+Status CheckScanJob(const LoadedJob& job) {
+  ScanJobSpec spec;
+  hw::MachineConfig machine_config;
+  return ReadScanKinds(job, &spec, &machine_config);
+}
+
+// Every kind of job this build runs: its strict reading, and its run.
+struct JobKind {
+  const char* name;
+  Status (*check)(const LoadedJob&);
+  Result<Report> (*run)(const LoadedJob&, const RunOptions&);
+};
+
+constexpr JobKind kJobKinds[] = {
+    {"scan", CheckScanJob, RunScanJob},
+    {"accuracy", CheckScanJob, RunScanJob},
+    {"calibrate", CheckCalibrateJob, RunCalibrateJob},
+    {"field_calibration", CheckFieldCalibrationJob, RunFieldCalibrationJob},
+    {"mark", CheckMarkJob, RunMarkJob},
+    {"diagnose_machine", CheckDiagnoseMachineJob, RunDiagnoseMachineJob},
+    {"calibrate_profiler", CheckCalibrateProfilerJob, RunCalibrateProfilerJob},
+    {"inspect_grooves", CheckInspectGroovesJob, RunInspectGroovesJob},
+};
+
+Result<const JobKind*> KindOf(const LoadedJob& job) {
+  for (const JobKind& k : kJobKinds) {
+    if (job.kind == k.name) return &k;
+  }
   std::string kinds;
   for (const std::string& k : JobKinds()) kinds += (kinds.empty() ? "" : ", ") + k;
   return InvalidArgument(job.path + ": job: unknown kind '" + job.kind + "' (known: " + kinds + ")");
@@ -239,41 +262,23 @@ Status UnknownKind(const LoadedJob& job) {
 
 }  // namespace
 
+std::vector<std::string> JobKinds() {
+  std::vector<std::string> names;
+  for (const JobKind& k : kJobKinds) names.push_back(k.name);
+  return names;
+}
+
 Status CheckJob(const LoadedJob& job) {
-  if (job.kind == "scan" || job.kind == "accuracy") {
-    ScanJobSpec spec;
-    hw::MachineConfig machine_config;
-    return ReadScanKinds(job, &spec, &machine_config);
-  }
-  if (job.kind == "calibrate") return CheckCalibrateJob(job);
-  if (job.kind == "field_calibration") return CheckFieldCalibrationJob(job);
-  if (job.kind == "diagnose_machine") return CheckDiagnoseMachineJob(job);
-  if (job.kind == "mark") return CheckMarkJob(job);
-  if (job.kind == "calibrate_profiler") return CheckCalibrateProfilerJob(job);
-  if (job.kind == "inspect_grooves") return CheckInspectGroovesJob(job);
-  return UnknownKind(job);
+  INSITU_ASSIGN_OR_RETURN(const JobKind* kind, KindOf(job));
+  return kind->check(job);
 }
-
-namespace {
-
-Result<Report> RunJobOfKind(const LoadedJob& job, const RunOptions& options) {
-  if (job.kind == "scan" || job.kind == "accuracy") return RunScanJob(job, options);
-  if (job.kind == "calibrate") return RunCalibrateJob(job, options);
-  if (job.kind == "field_calibration") return RunFieldCalibrationJob(job, options);
-  if (job.kind == "diagnose_machine") return RunDiagnoseMachineJob(job, options);
-  if (job.kind == "mark") return RunMarkJob(job, options);
-  if (job.kind == "calibrate_profiler") return RunCalibrateProfilerJob(job, options);
-  if (job.kind == "inspect_grooves") return RunInspectGroovesJob(job, options);
-  return UnknownKind(job);
-}
-
-}  // namespace
 
 Result<Report> RunJob(const LoadedJob& job, const RunOptions& options) {
   if (options.cancel != nullptr && options.cancel->load()) {
     return Status(StatusCode::kCancelled, "cancelled before it started");
   }
-  Result<Report> report = RunJobOfKind(job, options);
+  INSITU_ASSIGN_OR_RETURN(const JobKind* kind, KindOf(job));
+  Result<Report> report = kind->run(job, options);
   // A job stopped by its cancel flag ends cancelled whatever phase it was in (a scan between
   // lines, a list the head aborted, a loop of profiles): the phase saw it as its own failure.
   if (!report.ok() && report.status().code() != StatusCode::kCancelled &&

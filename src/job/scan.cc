@@ -112,8 +112,7 @@ Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
     machine.clock->SleepFor(options.settle_ms * 1e-3);
     auto frame = machine.camera->Grab();
     if (!frame.ok()) return frame.status().Prefixed("line " + std::to_string(i) + ": camera");
-    const vision::ImageView view{frame->bytes.data(), frame->width, frame->height,
-                                 frame->stride_bytes(), frame->bit_depth};
+    const vision::ImageView view = vision::ViewOf(*frame);
     const auto t0 = std::chrono::steady_clock::now();
     INSITU_RETURN_IF_ERROR(extractor->Extract(view, &stripe));
     out.stats.extract_time_ms +=

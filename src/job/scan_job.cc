@@ -2,6 +2,8 @@
 
 #include <string>
 
+#include "job/cell.h"
+
 namespace insitu::job {
 
 namespace {
@@ -94,10 +96,13 @@ void ReadArtifact(ConfigReader& r, ScanJobSpec* spec) {
 }
 
 Result<ScanMachine> BringUp(const LoadedJob& job, const ScanJobSpec& spec,
-                            const hw::MachineConfig& config) {
+                            const hw::MachineConfig& config, const RunOptions& options,
+                            std::initializer_list<hw::Role> more) {
   auto calibration = calib::LoadCalibration(spec.machine.calibration_path);
   if (!calibration.ok()) return calibration.status().Prefixed(job.path + ": machine.calibration");
-  INSITU_ASSIGN_OR_RETURN(hw::Machine machine, hw::CreateMachine(config));
+  INSITU_ASSIGN_OR_RETURN(hw::Machine machine,
+                          OpenCell(config, options, {hw::Role::kScanner, hw::Role::kCamera}, job));
+  INSITU_RETURN_IF_ERROR(machine.Require(more, job.path + ": the " + job.kind + " job"));
   const hw::CameraInfo info = machine.camera->info();
   INSITU_RETURN_IF_ERROR(calib::CheckCameraMatches(calibration->camera, info.model, info.serial,
                                                    info.sensor_width_px, info.sensor_height_px)

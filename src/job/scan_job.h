@@ -8,7 +8,8 @@
 
 #include "insitu/calib/calibration.h"
 #include "insitu/core/config.h"
-#include "insitu/hw/machine.h"
+#include "insitu/hw/cell.h"
+#include "insitu/job/runner.h"
 #include "insitu/job/insert.h"
 #include "insitu/job/job_file.h"
 #include "insitu/job/scan.h"
@@ -42,8 +43,10 @@ struct ScanMachine {
   calib::CalibrationSet calibration;
 };
 
-// Loads the calibration, creates the machine, refuses a calibration for another camera.
+// Loads the calibration, brings up the cell (its scan head and side camera, and the roles in
+// `more`), refuses a calibration for another camera.
 Result<ScanMachine> BringUp(const LoadedJob& job, const ScanJobSpec& spec,
-                            const hw::MachineConfig& config);
+                            const hw::MachineConfig& config, const RunOptions& options,
+                            std::initializer_list<hw::Role> more = {});
 
 }  // namespace insitu::job

@@ -35,8 +35,6 @@
 namespace insitu::vision {
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();  // an empty sample's median
-
 std::string Format(const char* fmt, double a, double b = 0.0, double c = 0.0) {
   char buf[200];
   std::snprintf(buf, sizeof buf, fmt, a, b, c);
@@ -289,7 +287,7 @@ Result<std::vector<CircleTarget>> FindCircleTargets(const ImageView& image,
         reject(c0, d_eq, "too little plate around it to measure the background");
         continue;
       }
-      const double bg = Median(&ring, kNaN), plateau = Median(&inner, kNaN);
+      const double bg = MedianInPlace(ring), plateau = MedianInPlace(inner);
       if (plateau - bg < min_contrast) {
         reject(c0, d_eq,
                Format("contrast %.1f gray levels below the least asked for, %.1f", plateau - bg,
@@ -413,8 +411,7 @@ Result<std::vector<CircleTarget>> FindCircleTargets(const ImageView& image,
       for (const Eigen::Vector2d& p : t.edge_px) {
         dist.push_back(static_cast<float>(std::abs(conic->Distance(p))));
       }
-      std::vector<float> sorted = dist;
-      const double limit = std::max(0.3, 4.0 * 1.4826 * Median(&sorted, kNaN));
+      const double limit = std::max(0.3, 4.0 * kMadToSigma * Median(dist));
       std::vector<Eigen::Vector2d> kept;
       for (size_t i = 0; i < dist.size(); ++i) {
         if (dist[i] <= limit) kept.push_back(t.edge_px[i]);

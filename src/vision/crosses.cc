@@ -120,7 +120,7 @@ bool MeasureBar(const cv::Mat& raw, double background, const Eigen::Vector2d& ce
     for (const Sample& s : samples) {
       residuals.push_back(static_cast<float>(std::abs(s.b - line->b0 - line->m * (s.a - ca))));
     }
-    const double limit = iteration == 0 ? 1e9 : std::max(0.3, 4.0 * 1.4826 * Median(&residuals, 0.0));
+    const double limit = iteration == 0 ? 1e9 : std::max(0.3, 4.0 * kMadToSigma * MedianInPlace(residuals));
     double s0 = 0, s1 = 0, s2 = 0, sb = 0, sab = 0;
     for (const Sample& s : samples) {
       if (iteration > 0 && std::abs(s.b - line->b0 - line->m * (s.a - ca)) > limit) continue;
@@ -151,7 +151,7 @@ bool MeasureBar(const cv::Mat& raw, double background, const Eigen::Vector2d& ce
         ++line->samples;
         peaks.push_back(static_cast<float>(s.peak));
       }
-      line->peak = Median(&peaks, 0.0);
+      line->peak = peaks.empty() ? 0.0 : MedianInPlace(peaks);
       return line->samples >= 6;
     }
   }
@@ -271,7 +271,7 @@ Result<std::vector<Cross>> FindCrosses(const ImageView& image, const CrossOption
           if (m[u] == 0) around.push_back(r[u]);
         }
       }
-      const double background = Median(&around, 0.0);
+      const double background = around.empty() ? 0.0 : MedianInPlace(around);
 
       // Two rounds: the lines through the blob's centroid, then through their crossing.
       const double clear = 0.5 * o.max_line_width_px + half_window + 1.0;

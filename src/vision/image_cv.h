@@ -1,5 +1,5 @@
 // What the OpenCV-based finders in vision/ share (private to the module): the check of an
-// ImageView before it is touched, and its samples as a float matrix.
+// ImageView before it is touched, its samples as a float matrix, and its robust level.
 #pragma once
 
 #include <algorithm>
@@ -7,10 +7,12 @@
 #include <cstddef>
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <opencv2/core.hpp>
 
+#include "insitu/core/robust.h"
 #include "insitu/core/status.h"
 #include "insitu/vision/image.h"
 
@@ -34,6 +36,10 @@ inline Status CheckImageView(const ImageView& image, const std::string& what) {
   return Status::Ok();
 }
 
+// Writes `image` to `path`, the format from the extension (image_io.cc). Errors: device_error
+// naming the file; OpenCV's exceptions end here.
+Status WriteImage(const cv::Mat& image, const std::string& path);
+
 // The image's gray levels as CV_32F (a copy).
 inline cv::Mat ToFloatMat(const ImageView& image) {
   const cv::Mat src(image.height, image.width, image.is_8bit() ? CV_8UC1 : CV_16UC1,
@@ -41,14 +47,6 @@ inline cv::Mat ToFloatMat(const ImageView& image) {
   cv::Mat out;
   src.convertTo(out, CV_32F);
   return out;
-}
-
-// Median of a sample (reorders it); `if_empty` for an empty one.
-inline double Median(std::vector<float>* v, double if_empty) {
-  if (v->empty()) return if_empty;
-  const auto mid = v->begin() + static_cast<std::ptrdiff_t>(v->size() / 2);
-  std::nth_element(v->begin(), mid, v->end());
-  return *mid;
 }
 
 // The level and noise of a background-subtracted CV_32F image, robustly: median and
@@ -60,9 +58,8 @@ inline void RobustLevel(const cv::Mat& image, int step, double* median, double* 
     const float* row = image.ptr<float>(v);
     for (int u = 0; u < image.cols; u += step) sample.push_back(row[u]);
   }
-  *median = Median(&sample, std::numeric_limits<double>::quiet_NaN());
-  for (float& s : sample) s = static_cast<float>(std::abs(s - *median));
-  *sigma = 1.4826 * Median(&sample, std::numeric_limits<double>::quiet_NaN());
+  *median = MedianInPlace(sample);
+  *sigma = kMadToSigma * MedianAbsDeviationFrom(std::move(sample), static_cast<float>(*median));
 }
 
 }  // namespace insitu::vision

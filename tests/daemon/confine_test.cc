@@ -75,5 +75,41 @@ TEST(Confine, AnInlineJobNamesNoFileOutsideAndNoOutput) {
   }
 }
 
+// Files a job names lie inside the read roots (or are the cell's own files); what it writes
+// (output) is not a read. The error names the key and its line, never a file's contents.
+TEST(Confine, WhatAJobReadsStaysInsideTheRoots) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("insitu_confine_reads_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir / "jobs");
+  fs::create_directories(dir / "shared");
+  std::ofstream(dir / "cell.yaml") << "the cell's calibration\n";
+  ReadRoots roots;
+  roots.folders = {(dir / "jobs").string(), (dir / "shared").string()};
+  roots.files = {(dir / "cell.yaml").string()};
+  EXPECT_TRUE(InsideRoots((dir / "shared" / "a.svg").string(), roots));
+  EXPECT_TRUE(InsideRoots((dir / "cell.yaml").string(), roots));
+  EXPECT_FALSE(InsideRoots((dir / "other.yaml").string(), roots));
+  EXPECT_FALSE(InsideRoots((dir / "jobs" / ".." / "other.yaml").string(), roots));
+  const auto doc = ConfigNode::Parse(
+      "job: mark\n"
+      "machine:\n"
+      "  calibration: ../cell.yaml\n"
+      "pattern:\n"
+      "  file: ../shared/plate.svg\n"
+      "output:\n"
+      "  calibration: /anywhere/x.yaml\n",
+      (dir / "jobs" / "job.yaml").string());
+  ASSERT_TRUE(doc.ok());
+  EXPECT_TRUE(CheckReads(*doc, (dir / "jobs").string(), roots).ok());
+  auto outside = ConfigNode::Parse("pattern:\n  file: /etc/hostname\n", "job.yaml");
+  ASSERT_TRUE(outside.ok());
+  const Status refused = CheckReads(*outside, (dir / "jobs").string(), roots);
+  EXPECT_EQ(refused.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(refused.message().find("job.yaml:2"), std::string::npos) << refused.message();
+  EXPECT_NE(refused.message().find("read_roots"), std::string::npos);
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace insitu::daemon

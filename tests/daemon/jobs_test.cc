@@ -7,12 +7,14 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "insitu/daemon/server.h"
-#include "insitu/hw/machine.h"
+#include "insitu/hw/cell.h"
 #include "insitu/hw/sim_backend.h"
 #include "insitu/sim/world.h"
 #include "support/line_client.h"
@@ -88,7 +90,7 @@ void KeepTheSimWorld() {
   hw::RegisterBackend("sim", [](const hw::MachineConfig& config) -> Result<hw::Machine> {
     INSITU_RETURN_IF_ERROR(config.world.Validate().Prefixed("world"));
     g_world = std::make_shared<sim::SimWorld>(config.world);
-    return hw::MakeSimMachine(g_world);
+    return hw::CreateMachineOn(config, g_world);
   });
 }
 
@@ -194,6 +196,147 @@ TEST(Jobs, AStageThatDoesNotArriveFaultsTheJob) {
   EXPECT_NE(end["reason"].get<std::string>().find("stage did not arrive"), std::string::npos);
   EXPECT_FALSE(server.state().laser_allowed());
   EXPECT_TRUE(Pong(c));
+  EXPECT_EQ(TheNextJobRuns(c), "done");
+}
+
+// The next prompt event asking the operator (machine.operator: person); null if none comes.
+json WaitForPrompt(Client& c) {
+  for (int k = 0; k < 10000; ++k) {
+    const std::string line = c.ReadLine();
+    if (line.empty()) return nullptr;
+    const json j = json::parse(line, nullptr, false);
+    if (j.is_object() && j.value("event", "") == "prompt" && j.contains("request")) return j;
+  }
+  return nullptr;
+}
+
+// A cell whose operator is a person: the calibrate job asks through prompt events, `status`
+// shows the waiting prompt, `ack` answers it (the simulator's hands then place the board), and
+// an abort ends the job cancelled with the operator's reason.
+TEST(Jobs, TheOperatorIsAskedThroughPromptsAndAnswersWithAck) {
+  Server server(Loopback("insitu_jobs_prompt"));
+  ASSERT_TRUE(server.Start().ok());
+  Client c(server.port());
+  ASSERT_EQ(c.Call(R"({"id": 1, "cmd": "subscribe"})")["ok"], true);
+  EXPECT_EQ(c.Call(R"({"id": 2, "cmd": "ack"})")["error"]["code"], "wrong_state");
+  ASSERT_EQ(c.Call(R"({"id": 3, "cmd": "arm"})")["ok"], true);
+  const json started = c.Call(RunLine(
+      4, R"("job": "config/jobs/calibrate.yaml", "set": {"machine.operator": "person"})"));
+  ASSERT_EQ(started["ok"], true) << started.dump();
+  const json first = WaitForPrompt(c);
+  ASSERT_TRUE(first.is_object());
+  EXPECT_EQ(first["job_id"], started["job_id"]);
+  EXPECT_NE(first["request"].get<std::string>().find("view 1 of"), std::string::npos)
+      << first.dump();
+  const json status = c.Call(R"({"id": 5, "cmd": "status"})");
+  EXPECT_EQ(status["prompt"]["prompt_id"], first["prompt_id"]) << status.dump();
+  EXPECT_EQ(c.Call(R"({"id": 6, "cmd": "ack", "prompt_id": 999})")["error"]["code"], "not_found");
+  EXPECT_EQ(c.Call(R"({"id": 7, "cmd": "ack", "prompt_id": -1})")["error"]["code"],
+            "bad_argument");
+  ASSERT_EQ(c.Call(json({{"id", 8}, {"cmd", "ack"}, {"prompt_id", first["prompt_id"]}}).dump())["ok"],
+            true);
+  const json second = WaitForPrompt(c);
+  ASSERT_TRUE(second.is_object());
+  EXPECT_NE(second["request"].get<std::string>().find("view 2 of"), std::string::npos)
+      << second.dump();
+  ASSERT_EQ(c.Call(R"({"id": 9, "cmd": "ack", "abort": true})")["ok"], true);
+  const json end = WaitForJobEnd(c, started["job_id"]);
+  ASSERT_EQ(end["status"], "cancelled") << end.dump();
+  EXPECT_NE(end["reason"].get<std::string>().find("the operator aborted"), std::string::npos)
+      << end.dump();
+  EXPECT_FALSE(server.state().laser_allowed());
+}
+
+// A cancel ends a job that waits for the operator.
+TEST(Jobs, ACancelEndsTheWaitForTheOperator) {
+  Server server(Loopback("insitu_jobs_prompt_cancel"));
+  ASSERT_TRUE(server.Start().ok());
+  Client c(server.port());
+  ASSERT_EQ(c.Call(R"({"id": 1, "cmd": "subscribe"})")["ok"], true);
+  ASSERT_EQ(c.Call(R"({"id": 2, "cmd": "arm"})")["ok"], true);
+  const json started = c.Call(RunLine(
+      3, R"("job": "config/jobs/calibrate.yaml", "set": {"machine.operator": "person"})"));
+  ASSERT_EQ(started["ok"], true) << started.dump();
+  ASSERT_TRUE(WaitForPrompt(c).is_object());
+  ASSERT_EQ(c.Call(R"({"id": 4, "cmd": "cancel"})")["ok"], true);
+  const json end = WaitForJobEnd(c, started["job_id"]);
+  EXPECT_EQ(end["status"], "cancelled") << end.dump();
+  EXPECT_TRUE(c.Call(R"({"id": 5, "cmd": "status"})")["prompt"].is_null());
+}
+
+// A job file in the jobs folder, made from the shipped profiler calibration: files named by
+// absolute paths into the source tree, its output `mount_file`.
+std::filesystem::path ProfilerJob(const std::filesystem::path& jobs, const std::string& world,
+                                  const std::string& mount_file) {
+  const std::string src = INSITU_SOURCE_DIR;
+  std::ifstream in(src + "/config/jobs/calibrate_profiler.yaml");
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string job = text.str();
+  const auto swap = [&job](const std::string& from, const std::string& to) {
+    job.replace(job.find(from), from.size(), to);
+  };
+  swap("../worlds/default.yaml", world);
+  swap("../../out/calib/machine.yaml", src + "/calib/as_designed.yaml");
+  swap("../../out/calib/profiler_mount.yaml", mount_file);
+  std::filesystem::create_directories(jobs);
+  const std::filesystem::path path = jobs / "profiler.yaml";
+  std::ofstream(path) << job;
+  return path;
+}
+
+// What a job reads lies inside the daemon's read roots; what it writes goes under its results
+// folder, whatever its job file says; a daemon with a cell of its own keeps clients off it.
+TEST(Jobs, AJobReadsInsideTheRootsAndWritesUnderItsResults) {
+  const std::filesystem::path tmp = std::filesystem::temp_directory_path() / "insitu_jobs_roots";
+  std::filesystem::remove_all(tmp);
+  const std::string src = INSITU_SOURCE_DIR;
+  ServerOptions o = Loopback("insitu_jobs_roots_results");
+  o.jobs_dir = (tmp / "jobs").string();
+  o.read_roots = {o.jobs_dir, src + "/config", src + "/calib"};
+  Server server(o);
+  ProfilerJob(tmp / "jobs", "/etc/hostname", (tmp / "elsewhere" / "mount.yaml").string());
+  ASSERT_TRUE(server.Start().ok());
+  Client c(server.port());
+  ASSERT_EQ(c.Call(R"({"id": 1, "cmd": "subscribe"})")["ok"], true);
+  ASSERT_EQ(c.Call(R"({"id": 2, "cmd": "arm"})")["ok"], true);
+  // A world outside the roots: refused before it is read, naming the key, not the file.
+  const json outside = c.Call(RunLine(3, R"("job": "profiler.yaml")"));
+  ASSERT_EQ(outside["ok"], false);
+  const std::string why = outside["error"]["message"];
+  EXPECT_NE(why.find("world"), std::string::npos) << why;
+  EXPECT_NE(why.find("read_roots"), std::string::npos) << why;
+  // Inside: it runs, and the mount file lands in its results folder, not where it said.
+  ProfilerJob(tmp / "jobs", src + "/config/worlds/default.yaml",
+              (tmp / "elsewhere" / "mount.yaml").string());
+  const json started = c.Call(RunLine(4, R"("job": "profiler.yaml")"));
+  ASSERT_EQ(started["ok"], true) << started.dump();
+  const json end = WaitForJobEnd(c, started["job_id"]);
+  ASSERT_EQ(end["status"], "done") << end.dump();
+  EXPECT_FALSE(std::filesystem::exists(tmp / "elsewhere" / "mount.yaml"));
+  const json result = c.Call(json({{"id", 5}, {"cmd", "result"}, {"job_id", started["job_id"]}}).dump());
+  const std::filesystem::path dir =
+      std::filesystem::path(o.results_dir) / started["job_id"].get<std::string>();
+  EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(dir) / "mount.yaml")) << dir;
+  EXPECT_NE(result["report"]["warnings"].dump().find("written to"), std::string::npos)
+      << result["report"].dump();
+}
+
+TEST(Jobs, ADaemonsCellIsNotAClientsToChange) {
+  ServerOptions o = Loopback("insitu_jobs_cell");
+  o.machine_sets = {"machine={}", "machine.backend=sim",
+                    std::string("machine.calibration=") + INSITU_SOURCE_DIR +
+                        "/calib/as_designed.yaml"};
+  Server server(o);
+  ASSERT_TRUE(server.Start().ok());
+  Client c(server.port());
+  ASSERT_EQ(c.Call(R"({"id": 0, "cmd": "subscribe"})")["ok"], true);
+  ASSERT_EQ(c.Call(R"({"id": 1, "cmd": "arm"})")["ok"], true);
+  const json refused = c.Call(RunLine(2, R"("job": "config/jobs/scan_step_gauge.yaml", )"
+                                         R"("set": {"machine.stage": "none"})"));
+  EXPECT_EQ(refused["error"]["code"], "bad_argument") << refused.dump();
+  EXPECT_NE(refused["error"]["message"].get<std::string>().find("machine.stage"),
+            std::string::npos);
   EXPECT_EQ(TheNextJobRuns(c), "done");
 }
 

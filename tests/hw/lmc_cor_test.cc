@@ -18,7 +18,7 @@
 
 #include "insitu/fit/cor_physics.h"
 #include "insitu/hw/lmc_sim_board.h"
-#include "insitu/hw/machine.h"
+#include "insitu/hw/cell.h"
 #include "insitu/optics/scan_head.h"
 #include "insitu/pattern/correction_table.h"
 #include "insitu/sim/world.h"

@@ -16,7 +16,7 @@
 
 #include "insitu/hw/lmc_cor.h"
 #include "insitu/hw/lmc_sim_board.h"
-#include "insitu/hw/machine.h"
+#include "insitu/hw/cell.h"
 #include "insitu/hw/sim_backend.h"
 #include "insitu/sim/world.h"
 

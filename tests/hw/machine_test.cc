@@ -1,8 +1,12 @@
-#include "insitu/hw/machine.h"
+#include "insitu/hw/cell.h"
 
 #include <gtest/gtest.h>
 
+#include <string>
+#include <vector>
+
 #include "insitu/hw/sim_backend.h"
+#include "support/grbl_emulator.h"
 
 namespace insitu::hw {
 namespace {
@@ -47,6 +51,141 @@ TEST(Machine, DevicesShareOneClock) {
   EXPECT_NEAR(m.clock->Now() - t0, 0.5, 1e-9);
   EXPECT_NEAR(*m.stage->Position(), 5.0, 1e-12);
   EXPECT_EQ(m.stage->MoveTo(50.0).code(), StatusCode::kOutOfRange);
+}
+
+// A simulated cell: every role the world has is the simulator's, on its clock.
+TEST(Cell, ASimulatedCellHasEveryRoleTheWorldHas) {
+  MachineConfig config;
+  config.world.gantry.present = true;
+  config.world.profiler.present = true;
+  auto m = CreateMachine(config);
+  ASSERT_TRUE(m.ok()) << m.status().message();
+  EXPECT_FALSE(m->real);
+  for (Role r : kRoles) {
+    if (r == Role::kCoaxial) continue;  // the default world's head has none
+    EXPECT_TRUE(m->Has(r)) << RoleKey(r);
+  }
+  EXPECT_EQ(m->Has(Role::kCoaxial), config.world.scan_head.coaxial.present);
+  EXPECT_TRUE(m->warnings.empty());
+  EXPECT_TRUE(m->Require({Role::kScanner, Role::kStage, Role::kOperator}, "a job").ok());
+}
+
+// A role named none has no device; a job that needs it is refused naming the role's key.
+TEST(Cell, AJobIsRefusedARoleTheCellDoesNotHave) {
+  MachineConfig config;
+  config.stage = "none";
+  auto m = CreateMachine(config);
+  ASSERT_TRUE(m.ok()) << m.status().message();
+  EXPECT_FALSE(m->Has(Role::kStage));
+  const Status refused = m->Require({Role::kScanner, Role::kStage}, "the calibrate job");
+  EXPECT_EQ(refused.code(), StatusCode::kFailedPrecondition);
+  EXPECT_NE(refused.message().find("the calibrate job needs a Z stage"), std::string::npos)
+      << refused.message();
+  EXPECT_NE(refused.message().find("machine.stage"), std::string::npos);
+}
+
+TEST(Cell, UnknownDevicesAndAbsentSimulatedOnesAreRefusedByRole) {
+  MachineConfig config;
+  config.stage = "zaber";
+  auto unknown = CreateMachine(config);
+  ASSERT_FALSE(unknown.ok());
+  EXPECT_NE(unknown.status().message().find("machine.stage: no device 'zaber'"),
+            std::string::npos)
+      << unknown.status().message();
+  MachineConfig coaxial;
+  coaxial.coaxial = "sim";
+  coaxial.world.scan_head.coaxial.present = false;
+  auto absent = CreateMachine(coaxial);
+  ASSERT_FALSE(absent.ok());
+  EXPECT_NE(absent.status().message().find("machine.coaxial"), std::string::npos);
+}
+
+// A person as the operator: asked first, then (on a simulated cell) the simulator's hands do
+// it. Without a way to ask, such a cell does not come up; their refusal cancels.
+TEST(Cell, APersonIsAskedBeforeTheSimulatedHandsAct) {
+  MachineConfig config;
+  config.person = "person";
+  config.world.board.present = true;
+  auto unasked = CreateMachine(config);
+  ASSERT_FALSE(unasked.ok());
+  EXPECT_EQ(unasked.status().code(), StatusCode::kFailedPrecondition);
+  std::vector<std::string> asked;
+  bool refuse = false;
+  config.ask_person = [&](const std::string& request) {
+    asked.push_back(request);
+    return refuse ? Status(StatusCode::kCancelled, "no") : Status::Ok();
+  };
+  auto m = CreateMachine(config);
+  ASSERT_TRUE(m.ok()) << m.status().message();
+  ASSERT_TRUE(m->person->PlaceBoard(2, 12).ok());
+  ASSERT_EQ(asked.size(), 1u);
+  EXPECT_NE(asked[0].find("view 3 of 12"), std::string::npos) << asked[0];
+  refuse = true;
+  EXPECT_EQ(m->person->ClearTable().code(), StatusCode::kCancelled);
+}
+
+// A real device makes the cell real: roles it does not name have no device (nothing silently
+// simulated), and one that cannot be opened is an error naming its role.
+TEST(Cell, ARealDeviceThatCannotOpenIsAnErrorNamingItsRole) {
+  MachineConfig config;
+  config.scanner = "lmc";
+  config.lmc.transport = "usb";
+  config.lmc.usb.vid = 0x9588;
+  config.lmc.usb.pid = 0x0fff;  // no such board on a test machine
+  EXPECT_TRUE(IsRealCell(config));
+  EXPECT_FALSE(NeedsSimulator(config));
+  EXPECT_EQ(DeviceFor(config, Role::kStage), "none");
+  EXPECT_EQ(DeviceFor(config, Role::kOperator), "none");
+  auto m = CreateMachine(config);
+  ASSERT_FALSE(m.ok());
+  EXPECT_EQ(m.status().message().rfind("machine.scanner", 0), 0u) << m.status().message();
+  config.stage = "sim";
+  EXPECT_TRUE(NeedsSimulator(config));
+}
+
+// A real stage (a GRBL controller, here its emulator on a pseudo-terminal) makes the cell
+// real: the roles it does not name have no device, a job needing one is refused by name, and
+// a simulated device must be named, which the cell reports as a dry run.
+TEST(Cell, ARealStageMakesARealCellWithNothingSimulatedUnlessNamed) {
+  testing::GrblEmulatorOptions fast;
+  fast.time_scale = 0.05;
+  testing::GrblEmulator emulator(fast);
+  MachineConfig config;
+  config.stage = "grbl";
+  config.grbl.port = emulator.port();
+  config.grbl.min_z_mm = -19.0;
+  config.grbl.max_z_mm = 29.0;
+  config.grbl.machine_zero_mm = -30.0;
+  config.grbl.banner_wait_s = 0.05;
+  config.grbl.status_poll_s = 0.01;
+  EXPECT_FALSE(NeedsSimulator(config));
+  {
+    auto m = CreateMachine(config);
+    ASSERT_TRUE(m.ok()) << m.status().message();
+    EXPECT_TRUE(m->real);
+    EXPECT_TRUE(m->Has(Role::kStage));
+    for (Role r : {Role::kScanner, Role::kCamera, Role::kCoaxial, Role::kAxis, Role::kProfiler,
+                   Role::kOperator}) {
+      EXPECT_FALSE(m->Has(r)) << RoleKey(r);
+    }
+    EXPECT_TRUE(m->warnings.empty());
+    const Status refused = m->Require({Role::kStage, Role::kScanner}, "the scan job");
+    EXPECT_NE(refused.message().find("machine.scanner names no device on this real cell"),
+              std::string::npos)
+        << refused.message();
+    ASSERT_TRUE(m->stage->MoveTo(2.0).ok());
+    EXPECT_NEAR(emulator.machine_z_mm(), -28.0, 1e-9);
+  }
+  config.scanner = "sim";
+  EXPECT_TRUE(NeedsSimulator(config));
+  auto dry = CreateMachine(config);
+  ASSERT_TRUE(dry.ok()) << dry.status().message();
+  EXPECT_TRUE(dry->Has(Role::kScanner));
+  EXPECT_FALSE(dry->Has(Role::kCamera));
+  ASSERT_EQ(dry->warnings.size(), 1u);
+  EXPECT_EQ(dry->warnings[0].rfind("dry run: the scan head is simulated (machine.scanner: sim)", 0),
+            0u)
+      << dry->warnings[0];
 }
 
 }  // namespace

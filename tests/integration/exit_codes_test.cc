@@ -7,11 +7,14 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
+
+#include "support/grbl_emulator.h"
 
 namespace {
 
@@ -23,11 +26,18 @@ std::string Job(const std::string& name) {
   return std::string(INSITU_SOURCE_DIR) + "/config/jobs/" + name;
 }
 
-// Runs insitu with `args` (output to /dev/null); after `interrupt_after_s` (>= 0) sends SIGINT.
-// Returns the exit code, or -1 when it did not exit normally.
-int Insitu(const std::vector<std::string>& args, double interrupt_after_s = -1.0) {
+// Runs insitu with `args` (output to /dev/null, `input` on its standard input, then closed);
+// after `interrupt_after_s` (>= 0) sends SIGINT. Returns the exit code, or -1 when it did not
+// exit normally.
+int Insitu(const std::vector<std::string>& args, double interrupt_after_s = -1.0,
+           const std::string& input = "") {
+  int in[2];
+  if (pipe(in) != 0) return -1;
   const pid_t pid = fork();
   if (pid == 0) {
+    dup2(in[0], STDIN_FILENO);
+    close(in[0]);
+    close(in[1]);
     std::vector<char*> argv{const_cast<char*>(INSITU_BIN)};
     for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
     argv.push_back(nullptr);
@@ -36,6 +46,9 @@ int Insitu(const std::vector<std::string>& args, double interrupt_after_s = -1.0
     execv(INSITU_BIN, argv.data());
     _exit(127);
   }
+  close(in[0]);
+  if (!input.empty() && write(in[1], input.data(), input.size()) < 0) kill(pid, SIGKILL);
+  close(in[1]);
   if (interrupt_after_s >= 0) {
     std::this_thread::sleep_for(std::chrono::duration<double>(interrupt_after_s));
     kill(pid, SIGINT);
@@ -76,6 +89,47 @@ TEST(ExitCodes, DoneFailedBadInputInterrupted) {
   std::string line;
   std::getline(kept, line);
   EXPECT_EQ(line, "# the cell's previous calibration");
+}
+
+// A real stage (a GRBL controller's emulator on a pseudo-terminal) in an otherwise simulated
+// dry run: its hard-limit alarm on the calibrate job's first move faults the job, exit code 1.
+TEST(ExitCodes, ARealStagesAlarmFaultsTheJob) {
+  const fs::path dir = Dir() / "grbl";
+  fs::remove_all(dir);
+  insitu::testing::GrblEmulatorOptions fast;
+  fast.time_scale = 0.05;
+  insitu::testing::GrblEmulator emulator(fast);
+  emulator.SetLimitSwitchAt(-30.0);  // between homing (-1) and the board's height (-45)
+  const std::vector<std::string> run = {
+      "run", Job("calibrate.yaml"), "--out", (dir / "out").string(),
+      "--set", "output.calibration=" + (dir / "cal.yaml").string(),
+      "--set", "machine.stage=grbl", "--set", "machine.grbl.port=" + emulator.port(),
+      "--set", "machine.grbl.min_z_mm=-20", "--set", "machine.grbl.max_z_mm=20",
+      "--set", "machine.grbl.machine_zero_mm=-25", "--set", "machine.grbl.banner_wait_s=0.05",
+      "--set", "machine.scanner=sim", "--set", "machine.camera=sim",
+      "--set", "machine.operator=sim"};
+  EXPECT_EQ(Insitu(run), 1);
+  EXPECT_NEAR(emulator.machine_z_mm(), -30.0, 0.5);  // stopped at the switch
+  std::ifstream report(dir / "out" / "report.json");
+  std::stringstream text;
+  text << report.rdbuf();
+  EXPECT_NE(text.str().find("ALARM:1"), std::string::npos) << text.str();
+  EXPECT_NE(text.str().find("dry run: the scan head is simulated"), std::string::npos);
+  EXPECT_FALSE(fs::exists(dir / "cal.yaml"));
+}
+
+// A cell whose operator is a person asks at the terminal: "abort" there, or no one to answer
+// (standard input closed), ends the job as interrupted, its calibration untouched.
+TEST(ExitCodes, TheOperatorAtTheTerminalCanStopTheJob) {
+  const fs::path dir = Dir() / "operator";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::vector<std::string> run = {
+      "run", Job("calibrate.yaml"), "--out", (dir / "out").string(), "--set",
+      "machine.operator=person", "--set", "output.calibration=" + (dir / "cal.yaml").string()};
+  EXPECT_EQ(Insitu(run, -1.0, "\nabort\n"), 130);  // one view placed, then aborted
+  EXPECT_EQ(Insitu(run, -1.0, ""), 130);
+  EXPECT_FALSE(fs::exists(dir / "cal.yaml"));
 }
 
 }  // namespace

@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "insitu/hw/machine.h"
+#include "insitu/hw/cell.h"
 #include "insitu/hw/sim_backend.h"
 #include "insitu/job/job_file.h"
 #include "insitu/job/runner.h"
@@ -24,7 +24,7 @@ inline void KeepTheWorld() {
   hw::RegisterBackend("sim", [](const hw::MachineConfig& config) -> Result<hw::Machine> {
     INSITU_RETURN_IF_ERROR(config.world.Validate());
     LastSimWorld() = std::make_shared<sim::SimWorld>(config.world);
-    return hw::MakeSimMachine(LastSimWorld());
+    return hw::CreateMachineOn(config, LastSimWorld());
   });
 }
 

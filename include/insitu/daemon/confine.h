@@ -9,6 +9,7 @@
 
 #include <nlohmann/json_fwd.hpp>
 
+#include "insitu/core/config.h"
 #include "insitu/core/status.h"
 
 namespace insitu::daemon {
@@ -34,5 +35,22 @@ bool ForbiddenSetKey(const std::string& dotted_key);
 // path inside `jobs_dir`, nothing under output, no record_baseline. Errors name the key.
 Status CheckInlineJob(const nlohmann::json& job, const std::string& jobs_dir,
                       const std::string& where = "");
+
+// Where a job may read: inside one of `folders`, or exactly one of `files` (the daemon's own:
+// its cell's calibration, its board's correction table).
+struct ReadRoots {
+  std::vector<std::string> folders;
+  std::vector<std::string> files;
+};
+
+// True when `path` (links followed) lies inside one of the roots' folders or is one of its
+// files.
+bool InsideRoots(const std::string& path, const ReadRoots& roots);
+
+// Every file `doc` names (a key NamesAFile gives, at any depth, a path or a list of them),
+// resolved against `folder`, lies within `roots`; a world document's `base:` resolves against
+// `folder` as well (pass the world file's). Errors: invalid_argument naming the key where it
+// is written (file and line), never the file's contents.
+Status CheckReads(const ConfigNode& doc, const std::string& folder, const ReadRoots& roots);
 
 }  // namespace insitu::daemon

@@ -64,6 +64,30 @@ const std::vector<CommandSpec>& CommandTable();
 // nullptr for an unknown command.
 const CommandSpec* FindCommand(const std::string& name);
 
+// Every error code a reply carries ({"error": {"code": ..., "message": ...}}), as
+// docs/protocol.md lists them.
+namespace errc {
+inline constexpr char kLineTooLong[] = "line_too_long";
+inline constexpr char kInvalidJson[] = "invalid_json";
+inline constexpr char kNotAnObject[] = "not_an_object";
+inline constexpr char kMissingCmd[] = "missing_cmd";
+inline constexpr char kBadType[] = "bad_type";
+inline constexpr char kUnknownCommand[] = "unknown_command";
+inline constexpr char kBadArgument[] = "bad_argument";
+inline constexpr char kNotFound[] = "not_found";
+inline constexpr char kBadInput[] = "bad_input";
+inline constexpr char kOutOfRange[] = "out_of_range";
+inline constexpr char kWrongState[] = "wrong_state";
+inline constexpr char kDeviceError[] = "device_error";
+inline constexpr char kCancelled[] = "cancelled";
+inline constexpr char kInternal[] = "internal";
+inline constexpr char kAuthTimeout[] = "auth_timeout";
+inline constexpr char kIdleTimeout[] = "idle_timeout";
+inline constexpr char kUnauthorized[] = "unauthorized";
+inline constexpr char kTooManyClients[] = "too_many_clients";
+inline constexpr char kForbidden[] = "forbidden";
+}  // namespace errc
+
 // Nothing when the request may be handled; else the error to reply with: unknown_command
 // (listing the known ones), bad_argument (an unknown argument, a missing required one or a
 // wrong type, named).

@@ -54,9 +54,13 @@ struct ServerOptions {
   int max_clients_per_address = 32;
   std::string results_dir = "insitu-results";
   std::string jobs_dir = ".";  // relative job paths and inline jobs' relative paths
-  // The cell this daemon drives, as "machine.key=value" overrides applied to every job after
-  // the client's own (insitud's `machine:` section): the backend, the calibration file, the
-  // devices and their options, whatever the job's machine: section says. Empty: the job's own.
+  // The folders a job may read files from (patterns, worlds, calibrations, tables), besides
+  // the files the cell names (machine_sets). Empty: jobs_dir only.
+  std::vector<std::string> read_roots;
+  // The cell this daemon drives, as overrides applied to every job after the client's own
+  // (insitud's `machine:` section): "machine={}" first, so the job's machine: section is
+  // replaced whole, then each "machine.key=value". With a cell, a client's set may not name
+  // machine.* keys. Empty: each job runs on its own machine: section.
   std::vector<std::string> machine_sets;
   bool queue = false;          // a run while a job runs: queued (true) or refused
   int max_queued = 8;

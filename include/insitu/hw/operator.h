@@ -1,7 +1,11 @@
 // The person at the machine, as jobs see them: asked to put the calibration board in a new
-// pose, or to take it away. On a real cell this prompts and waits; on the simulator the
-// world's scripted poses stand in for the operator's hands.
+// pose, or to take it away. On a real cell this asks a person and waits (MakePersonOperator);
+// on the simulator the world's scripted poses stand in for the operator's hands.
 #pragma once
+
+#include <functional>
+#include <memory>
+#include <string>
 
 #include "insitu/core/status.h"
 
@@ -26,5 +30,11 @@ class Operator {
   // "Take every part off the stage": calibrations that need the bare plate ask for this.
   virtual Status ClearTable() = 0;
 };
+
+// An operator who is a person: each step is put to them as a request (`ask` shows it and
+// returns when they have done it, or cancelled), and then, when the cell has `hands` (the
+// simulator's, rehearsing a real cell's procedure), those do it.
+std::unique_ptr<Operator> MakePersonOperator(std::function<Status(const std::string&)> ask,
+                                             std::unique_ptr<Operator> hands);
 
 }  // namespace insitu::hw

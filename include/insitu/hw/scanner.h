@@ -30,6 +30,14 @@ struct GalvoList {
   double laser_frequency_khz = 30.0;    // pulse repetition rate
   double laser_on_delay_us = 0.0, laser_off_delay_us = 0.0;
   double jump_delay_us = 0.0, mark_delay_us = 0.0;
+
+  // Whether any entry fires the marking laser.
+  bool HasMarks() const {
+    for (const GalvoListEntry& e : entries) {
+      if (e.kind == GalvoListEntry::Kind::kMark) return true;
+    }
+    return false;
+  }
 };
 
 struct ScannerInfo {
@@ -74,15 +82,20 @@ class Scanner {
   // failed_precondition (not armed and the list marks), out_of_range (a point outside the
   // field), cancelled (aborted through control.abort: the laser is off, the head stopped where
   // it was, the list's remainder not run).
+  // Both preconditions are checked here, once for every backend.
   Status ExecuteList(const GalvoList& list, const ListControl& control = {}) {
     if (control.abort != nullptr && control.abort->load()) {
       return Status(StatusCode::kCancelled, "list aborted before it started");
+    }
+    if (list.HasMarks() && !armed()) {
+      return FailedPrecondition("the list marks but the scan head is not armed");
     }
     return RunList(list, control);
   }
 
  protected:
-  // The backend's list execution (ExecuteList has checked the abort flag once).
+  // The backend's list execution. ExecuteList has checked the abort flag once, and that a list
+  // which marks runs only on an armed head.
   virtual Status RunList(const GalvoList& list, const ListControl& control) = 0;
 };
 

@@ -13,7 +13,7 @@
 
 #include "insitu/core/config.h"
 #include "insitu/core/status.h"
-#include "insitu/hw/machine.h"
+#include "insitu/hw/cell.h"
 #include "insitu/sim/world_options.h"
 #include "insitu/vision/stripe.h"
 
@@ -37,8 +37,8 @@ Result<LoadedJob> LoadJobText(const std::string& text, const std::string& origin
 // Resolves a path from a job file: absolute stays, relative is taken from `folder`.
 std::string ResolvePath(const std::string& folder, const std::string& path);
 
-// Section readers: fill the Options from a strict reader and validate them at the right line.
-void ReadWorld(ConfigReader& r, sim::WorldOptions* world);
+// Section readers: fill the Options from a strict reader and validate them at the right line
+// (the world's: sim/world_config.h).
 void ReadStripeOptions(ConfigReader& r, vision::StripeOptions* options);
 
 // `machine:` section: backend name, calibration file; the world comes from `world:`.

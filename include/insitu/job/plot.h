@@ -1,5 +1,5 @@
-// Line plots written as PNG (the figures jobs leave next to their reports). OpenCV draws them;
-// no OpenCV type leaves plot.cc.
+// Line plots written as PNG (the figures jobs leave next to their reports), drawn on a
+// vision::Canvas. Errors: invalid_argument for a bad spec, device_error naming the file.
 #pragma once
 
 #include <optional>

@@ -31,7 +31,9 @@ Status WriteReport(const Report& report, const std::string& dir);
 
 // Starts a job's report: creates `dir` (not_found naming it if it cannot be made), names the
 // job and stamps its start.
-Result<Report> StartReport(const std::string& job_kind, const std::string& dir);
+// `warnings` start the report's (the cell's: a dry run's simulated devices).
+Result<Report> StartReport(const std::string& job_kind, const std::string& dir,
+                           const std::vector<std::string>& warnings = {});
 
 // Ends a job's report: sets ok, error and the elapsed time since `start`, writes it to `dir`.
 // Returns the report, or for a failed job `failure` with the error (the report is on disk

@@ -33,6 +33,13 @@ struct RunOptions {
   // Called on the job's thread when a phase starts, then at most about every 0.2 s, and when
   // it ends. May be empty.
   std::function<void(const JobProgress&)> progress;
+  // How a cell with `machine.operator: person` asks them (hw::AskPerson): shows the request
+  // and returns when done; cancelled when they refuse. Empty: such a cell does not come up.
+  std::function<Status(const std::string& request)> ask_person;
+  // A file the job file names for the job to write (output.calibration, output.mount_file, a
+  // diagnosis baseline) goes into out_dir under its own name unless it is inside it already,
+  // with a warning (insitud: everything a job writes goes under its results folder).
+  bool confine_writes = false;
 };
 
 // Job kinds this build runs.

@@ -1,10 +1,14 @@
-// A non-owning view of a mono image (8-bit, or 16-bit holding 12-bit samples), row-major.
+// A non-owning view of a mono image (8-bit, or 16-bit holding 12-bit samples), row-major; an
+// image that owns its samples; a camera Frame seen as a view.
 // Pixel (u, v): u is the column (0..width-1, left to right), v the row (top to bottom); the
 // centre of pixel (u, v) is at image coordinates (u, v), as in OpenCV.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
+#include <vector>
+
+#include "insitu/core/frame.h"
 
 namespace insitu::vision {
 
@@ -24,6 +28,35 @@ struct ImageView {
     return reinterpret_cast<const uint16_t*>(static_cast<const uint8_t*>(data) +
                                              static_cast<size_t>(v) * stride_bytes);
   }
+  // The pixels [x, x + w) x [y, y + h), which the caller keeps inside this view; pixel (u, v)
+  // of the crop is pixel (x + u, y + v) here.
+  ImageView Crop(int x, int y, int w, int h) const {
+    const size_t offset =
+        static_cast<size_t>(y) * stride_bytes + static_cast<size_t>(x) * (is_8bit() ? 1 : 2);
+    return {static_cast<const uint8_t*>(data) + offset, w, h, stride_bytes, bit_depth};
+  }
 };
+
+// An image that owns its samples, rows packed.
+struct Image {
+  int width = 0;
+  int height = 0;
+  int bit_depth = 8;           // as ImageView's
+  std::vector<uint8_t> bytes;  // width * height samples of 1 (8-bit) or 2 bytes
+
+  ImageView view() const& {
+    return {bytes.data(), width, height, static_cast<size_t>(width) * (bit_depth == 8 ? 1 : 2),
+            bit_depth};
+  }
+  // A temporary image's view would dangle.
+  ImageView view() const&& = delete;
+};
+
+// A camera frame's samples as a view; valid while `frame` lives and its bytes do not change.
+inline ImageView ViewOf(const Frame& frame) {
+  return {frame.bytes.data(), frame.width, frame.height, frame.stride_bytes(), frame.bit_depth};
+}
+// A temporary frame's view would dangle.
+ImageView ViewOf(const Frame&&) = delete;
 
 }  // namespace insitu::vision

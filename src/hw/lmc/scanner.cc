@@ -86,9 +86,7 @@ class BoardScanner : public Scanner {
 
  protected:
   Status RunList(const GalvoList& list, const ListControl& control) override {
-    bool marks = false;
-    for (const GalvoListEntry& e : list.entries) marks |= e.kind == GalvoListEntry::Kind::kMark;
-    if (marks && !armed_) return FailedPrecondition("the list marks but the scan head is not armed");
+    const bool marks = list.HasMarks();
     INSITU_RETURN_IF_ERROR(StopPointer());
     std::array<uint16_t, 2> position = position_;
     uint16_t z_word = z_word_;

@@ -36,15 +36,10 @@ class SimScanner : public Scanner {
   Status RunList(const GalvoList& list, const ListControl& control) override {
     INSITU_RETURN_IF_ERROR(InjectedFault());
     std::vector<sim::ListMove> moves;
-    bool marks = false;
     for (const GalvoListEntry& e : list.entries) {
       const bool mark = e.kind == GalvoListEntry::Kind::kMark;
-      marks |= mark;
       moves.push_back(
           {mark ? sim::ListMove::Kind::kMark : sim::ListMove::Kind::kJump, e.to_in_galvo});
-    }
-    if (marks && !armed_) {
-      return FailedPrecondition("the list marks but the scan head is not armed");
     }
     sim::MarkingParams params;
     params.jump_speed_mm_per_s = list.jump_speed_mm_per_s;
