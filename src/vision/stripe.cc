@@ -1055,6 +1055,16 @@ const char* StripeStatusName(StripeStatus status) {
   return "unknown";
 }
 
+StripeOptions StripeOptions::ForBitDepth(int bit_depth) const {
+  StripeOptions o = *this;
+  if (bit_depth > 8 && bit_depth <= 16) {
+    const double scale = ((1 << bit_depth) - 1) / 255.0;
+    o.min_peak *= scale;
+    o.min_contrast *= scale;
+  }
+  return o;
+}
+
 Status StripeOptions::Validate() const {
   if (direction != StripeDirection::kAuto && direction != StripeDirection::kColumns &&
       direction != StripeDirection::kRows) {

@@ -5,8 +5,10 @@
 
 #include <atomic>
 #include <functional>
+#include <memory>
 
 #include "insitu/calib/calibration.h"
+#include "insitu/core/frame.h"
 #include "insitu/core/status.h"
 #include "insitu/geometry/cloud.h"
 #include "insitu/hw/machine.h"
@@ -49,6 +51,26 @@ struct ScanOutput {
   geometry::Cloud cloud;
   geometry::Cloud cloud_method1;  // method 2 only: the same centres reconstructed by method 1
   ScanStats stats;
+};
+
+// The per-frame path of a scan, as the scan runs it and bench/scan_pipeline_bench times it:
+// stripe centres (seed 000 eq. 7), undistorted rays, the line's light plane (eq. 1-4), method
+// 2's height lookup, appended to the cloud. One per thread (it keeps the extractor's buffers).
+class FrameProcessor {
+ public:
+  // Errors: the options' and the extraction's (invalid_argument); method 2 without a lookup.
+  static Result<std::unique_ptr<FrameProcessor>> Create(const ScanOptions& options,
+                                                        const vision::StripeOptions& stripe,
+                                                        const calib::CalibrationSet& calibration);
+  ~FrameProcessor();
+  // Line `line`'s frame (at options.line_x(line)) into out->cloud (and cloud_method1), its
+  // columns counted in out->stats; extraction wall time in out->stats.extract_time_ms.
+  Status Process(const Frame& frame, int line, ScanOutput* out);
+
+ private:
+  FrameProcessor() = default;
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
 };
 
 // Runs the scan on `machine` (the pointer is stopped on every exit path). `progress(done,

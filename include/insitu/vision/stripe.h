@@ -63,6 +63,10 @@ struct StripeOptions {
   bool subtract_threshold = false;
 
   // Names the first invalid field ("threshold_ratio must be in (0, 1), got 1.5").
+  // These options with their gray levels (min_peak, min_contrast) given on the 8-bit scale,
+  // for an image of `bit_depth` bits: scaled by (2^bits - 1) / 255, so a setting means the same
+  // light on an 8- and a 12-bit camera (a 12-bit frame's noise alone exceeds 20 raw levels).
+  StripeOptions ForBitDepth(int bit_depth) const;
   Status Validate() const;
 };
 
