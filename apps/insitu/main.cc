@@ -8,6 +8,7 @@
 // (command line, job file, --set, calibration, pattern or data file), 130 interrupted.
 #include <CLI/CLI.hpp>
 #include <poll.h>
+#include <termios.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -58,36 +59,46 @@ int ExitCodeFor(const insitu::Status& st) {
 }
 
 // The operator of a cell with `machine.operator: person`, at this terminal: the request on
-// stderr, Enter when done, "abort" to stop the job. Ctrl-C interrupts the wait as it does a job.
+// stderr; "done" (or Enter) when it is done, "abort" to stop the job; anything else asks again.
+// What was typed before the request is discarded (a key pressed early confirms nothing).
+// Ctrl-C interrupts the wait as it does a job; no one to answer (stdin closed) ends it too.
 insitu::Status AskAtConsole(const std::string& request) {
   using insitu::Status;
   using insitu::StatusCode;
-  std::fprintf(stderr, "\noperator: %s\n  Enter when done, or type abort: ", request.c_str());
-  std::fflush(stderr);
-  std::string line;
-  while (true) {
-    if (g_cancel.load()) return Status(StatusCode::kCancelled, "interrupted at the operator's prompt");
-    pollfd in{STDIN_FILENO, POLLIN, 0};
-    const int ready = poll(&in, 1, 200);
-    if (ready < 0 && errno == EINTR) continue;
-    if (ready < 0) return insitu::DeviceError(std::string("reading the terminal: ") + std::strerror(errno));
-    if (ready == 0) continue;
-    char c = 0;
-    const ssize_t n = read(STDIN_FILENO, &c, 1);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      return Status(StatusCode::kCancelled,
-                    "no operator answered (standard input closed) to: " + request);
+  if (isatty(STDIN_FILENO)) tcflush(STDIN_FILENO, TCIFLUSH);
+  for (;;) {
+    std::fprintf(stderr, "\noperator: %s\n  done (Enter) or abort: ", request.c_str());
+    std::fflush(stderr);
+    std::string line;
+    for (;;) {
+      if (g_cancel.load()) {
+        return Status(StatusCode::kCancelled, "interrupted at the operator's prompt");
+      }
+      pollfd in{STDIN_FILENO, POLLIN, 0};
+      const int ready = poll(&in, 1, 200);
+      if (ready < 0 && errno == EINTR) continue;
+      if (ready < 0) {
+        return insitu::DeviceError(std::string("reading the terminal: ") + std::strerror(errno));
+      }
+      if (ready == 0) continue;
+      char c = 0;
+      const ssize_t n = read(STDIN_FILENO, &c, 1);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) {
+        return Status(StatusCode::kCancelled,
+                      "no operator answered (standard input closed) to: " + request);
+      }
+      if (c == '\n') break;
+      line += c;
     }
-    if (c == '\n') break;
-    line += c;
+    line.erase(0, line.find_first_not_of(" \t\r"));
+    line.erase(line.find_last_not_of(" \t\r") + 1);
+    if (line.empty() || line == "done" || line == "d") return Status::Ok();
+    if (line == "abort" || line == "a") {
+      return Status(StatusCode::kCancelled, "the operator aborted at: " + request);
+    }
+    std::fprintf(stderr, "  '%s' is neither done nor abort\n", line.c_str());
   }
-  line.erase(0, line.find_first_not_of(" \t\r"));
-  line.erase(line.find_last_not_of(" \t\r") + 1);
-  if (line == "abort" || line == "a") {
-    return Status(StatusCode::kCancelled, "the operator aborted at: " + request);
-  }
-  return Status::Ok();
 }
 
 int Run(const std::string& job_path, const std::string& out_dir,

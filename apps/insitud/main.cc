@@ -18,6 +18,7 @@
 #include "insitu/calib/calibration.h"
 #include "insitu/core/config.h"
 #include "insitu/core/log.h"
+#include "insitu/daemon/confine.h"
 #include "insitu/daemon/server.h"
 #include "insitu/hw/cell.h"
 #include "insitu/job/job_file.h"
@@ -151,6 +152,20 @@ insitu::Result<DaemonConfig> ReadConfig(const std::string& path) {
   INSITU_RETURN_IF_ERROR(ReadSecret(path, "token", token_file, &c.server.token));
   INSITU_RETURN_IF_ERROR(
       ReadSecret(path, "admin_token", admin_token_file, &c.server.admin_token));
+  // A secret where jobs may read would be a job's to quote: refused.
+  {
+    insitu::daemon::ReadRoots roots;
+    roots.folders = c.server.read_roots.empty() ? std::vector<std::string>{c.server.jobs_dir}
+                                                : c.server.read_roots;
+    for (const auto& [key, file] : {std::pair<const char*, const std::string&>{"token_file", token_file},
+                                    {"admin_token_file", admin_token_file}}) {
+      if (!file.empty() && insitu::daemon::InsideRoots(file, roots)) {
+        return insitu::InvalidArgument(path + ": " + key + ": " + file +
+                                       " lies inside the folders jobs may read (jobs_dir, "
+                                       "read_roots): keep secrets outside them");
+      }
+    }
+  }
   if (has_machine) {
     // Checked now: a daemon that would fail every job on its calibration does not start.
     const auto calibration = insitu::calib::LoadCalibration(machine.calibration_path);
@@ -201,6 +216,17 @@ int main(int argc, char** argv) {
       insitu::hw::MachineConfig probe = m;
       for (insitu::hw::Role r : insitu::hw::kRoles) {
         if (!insitu::hw::IsRealDevice(m, r)) insitu::hw::DeviceField(probe, r) = "none";
+      }
+      // A stage is not opened here: opening homes it (a move nobody armed). Its port must be
+      // there; the controller answers when a job opens it.
+      if (probe.stage == "grbl") {
+        probe.stage = "none";
+        std::error_code ec;
+        if (!std::filesystem::exists(m.grbl.port, ec)) {
+          std::fprintf(stderr, "insitud: %s: machine.grbl.port: %s does not exist\n",
+                       config_path.c_str(), m.grbl.port.c_str());
+          return 1;
+        }
       }
       const auto opened = insitu::hw::CreateMachine(probe);
       if (!opened.ok()) {

@@ -72,13 +72,21 @@ Status CheckSetKeys(const std::vector<std::string>& sets) {
                              "the files its job file names and writes under the results folder");
     }
     // A value is a number, a word or a list of them: a map (or text that reads as one) would
-    // replace a whole section, file keys and all.
+    // replace a whole section, file keys and all. Judged as the reader will read it (YAML), and
+    // on the text too, for anything YAML would take as structure.
     const size_t start = value.find_first_not_of(" \t");
-    const bool structured = start != std::string::npos &&
-                            (value[start] == '{' || value.compare(start, 2, "- ") == 0 ||
-                             value.find(": ") != std::string::npos ||
-                             value.find('\n') != std::string::npos ||
-                             (value[start] == '[' && value.find('{') != std::string::npos));
+    bool structured = start != std::string::npos &&
+                      (value[start] == '{' || value.compare(start, 2, "- ") == 0 ||
+                       value.find(": ") != std::string::npos || value.find(":\t") != std::string::npos ||
+                       value.find('\n') != std::string::npos ||
+                       (value[start] == '[' && value.find('{') != std::string::npos));
+    const auto parsed = ConfigNode::Parse(value, "set");
+    if (parsed.ok() && !parsed->IsScalar() && !parsed->IsNull()) {
+      structured = structured || !parsed->IsSequence();
+      for (size_t i = 0; parsed->IsSequence() && i < parsed->size(); ++i) {
+        structured = structured || !parsed->At(i).IsScalar();
+      }
+    }
     if (structured) {
       return InvalidArgument("set: '" + key +
                              "' must be a number, a word or a list of them, not a section");
@@ -134,8 +142,10 @@ namespace {
 Status CheckPath(const ConfigNode& value, const std::string& folder, const ReadRoots& roots) {
   auto text = value.AsString();
   if (!text.ok() || text->empty()) return Status::Ok();  // the job's own reader says what is wrong
+  // The path as the job opens it (job::ResolvePath: lexically normal, so a `..` after a link
+  // cancels the link's name, not its target), then with its links followed.
   const fs::path p(*text);
-  const std::string path = p.is_absolute() ? *text : (fs::path(folder) / p).string();
+  const std::string path = (p.is_absolute() ? p : fs::path(folder) / p).lexically_normal().string();
   if (InsideRoots(path, roots)) return Status::Ok();
   return InvalidArgument(value.Where() + ": '" + *text +
                          "' is outside the folders this daemon reads (read_roots)");
@@ -143,10 +153,12 @@ Status CheckPath(const ConfigNode& value, const std::string& folder, const ReadR
 
 }  // namespace
 
-Status CheckReads(const ConfigNode& doc, const std::string& folder, const ReadRoots& roots) {
+Status CheckReads(const ConfigNode& doc, const std::string& folder, const ReadRoots& roots,
+                  bool skip_machine) {
   if (doc.IsMap()) {
     for (const std::string& key : doc.Keys()) {
       if (key == "output") continue;  // what a job writes: under its results folder (runner.h)
+      if (skip_machine && key == "machine") continue;
       const ConfigNode child = doc.Child(key);
       if (NamesAFile(key) && child.IsScalar()) {
         INSITU_RETURN_IF_ERROR(CheckPath(child, folder, roots));

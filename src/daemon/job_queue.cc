@@ -98,7 +98,7 @@ Status JobQueue::Ack(int prompt_id, bool done) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (answer_ != Answer::kWaiting) return FailedPrecondition("no prompt waits for an answer");
   const int waiting = prompt_["prompt_id"].get<int>();
-  if (prompt_id != 0 && prompt_id != waiting) {
+  if (prompt_id != waiting) {
     return NotFound("prompt " + std::to_string(prompt_id) + " is not the one waiting (" +
                     std::to_string(waiting) + ")");
   }

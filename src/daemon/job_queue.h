@@ -60,9 +60,9 @@ class JobQueue {
   // list within one head tick) or takes a queued one out of the queue. Returns the id.
   // Errors: failed_precondition (nothing runs), not_found (no such running or queued job).
   Result<std::string> Cancel(const std::string& id);
-  // Answers the running job's prompt: done (the operator did what it asks) or not (abort: the
-  // job ends cancelled). Errors: failed_precondition (no prompt waits), not_found (prompt_id is
-  // not the waiting one's; 0 means whichever waits).
+  // Answers the running job's prompt `prompt_id`: done (the operator did what it asks) or not
+  // (abort: the job ends cancelled). Errors: failed_precondition (no prompt waits), not_found
+  // (prompt_id is not the waiting one's: an answer to an earlier step never confirms this one).
   Status Ack(int prompt_id, bool done);
   // The running job and its last progress, the prompt waiting for the operator, and the
   // queue, for `status`.

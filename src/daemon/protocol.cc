@@ -98,9 +98,9 @@ const std::vector<CommandSpec>& CommandTable() {
        true,
        false},
       {"ack",
-       "answer the running job's prompt (machine.operator: person): done, or abort to end the "
-       "job cancelled; prompt_id the prompt event's (default: whichever waits)",
-       {{"prompt_id", ArgType::kNumber, false}, {"abort", ArgType::kBool, false}},
+       "answer the running job's prompt (machine.operator: person) by its prompt_id: done, or "
+       "abort to end the job cancelled",
+       {{"prompt_id", ArgType::kNumber, true}, {"abort", ArgType::kBool, false}},
        true,
        false},
       {"result", "a job's report", {{"job_id", ArgType::kString, true}}, true, false},

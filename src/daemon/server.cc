@@ -417,8 +417,9 @@ class Server::Impl::Session : public std::enable_shared_from_this<Session> {
     } else if (r.cmd == "cancel") {
       Send(server_->Cancel(r));
     } else if (r.cmd == "ack") {
-      const double id = r.body.contains("prompt_id") ? r.body["prompt_id"].get<double>() : 0.0;
-      if (!(id >= 0 && id <= 1e9 && id == std::floor(id))) {
+      // The prompt by its id: an answer meant for one step never confirms the next.
+      const double id = r.body["prompt_id"].get<double>();
+      if (!(id >= 1 && id <= 1e9 && id == std::floor(id))) {
         Send(ReplyError(r.id, errc::kBadArgument, "ack: \"prompt_id\" must be a prompt's number"));
         return;
       }
@@ -535,8 +536,8 @@ std::string Server::Impl::Run(const Request& r) {
                             JobPathInside(options.jobs_dir, spec.get<std::string>()));
     const auto raw = ConfigNode::LoadFile(path);
     if (raw.ok()) {
-      INSITU_RETURN_IF_ERROR(
-          CheckReads(*raw, std::filesystem::path(path).parent_path().string(), roots));
+      INSITU_RETURN_IF_ERROR(CheckReads(*raw, std::filesystem::path(path).parent_path().string(),
+                                        roots, !options.machine_sets.empty()));
     }
     return job::LoadJobFile(path, sets);
   };

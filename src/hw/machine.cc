@@ -4,9 +4,13 @@
 #include <mutex>
 #include <thread>
 
+#include "hw/aravis/camera.h"
+#include "hw/aravis/profiler.h"
+#include "hw/grbl/stage.h"
+#include "hw/lmc/lmc.h"
+#include "hw/lmc/sim_board.h"
 #include "insitu/hw/cell.h"
 #include "insitu/hw/lmc_cor.h"
-#include "insitu/hw/lmc_sim_board.h"
 #include "insitu/hw/sim_backend.h"
 
 namespace insitu::hw {
@@ -80,22 +84,6 @@ class WallClock : public MachineClock {
   std::chrono::steady_clock::time_point start_;
 };
 
-const std::string& Named(const MachineConfig& c, Role role) {
-  return DeviceField(const_cast<MachineConfig&>(c), role);
-}
-
-// A device the simulator provides: its own, or served through a real protocol.
-bool Simulated(const MachineConfig& c, Role role) {
-  const std::string d = DeviceFor(c, role);
-  if (d == "sim") return true;
-  switch (role) {
-    case Role::kScanner: return d == "lmc" && c.lmc.transport == "sim_board";
-    case Role::kCamera: return d == "aravis" && !c.aravis.simulate_on.empty();
-    case Role::kProfiler: return d == "aravis" && !c.aravis_profiler.simulate_on.empty();
-    default: return false;
-  }
-}
-
 Result<std::unique_ptr<Scanner>> OpenLmc(const LmcDeviceConfig& l,
                                          std::shared_ptr<sim::SimWorld> world) {
   INSITU_RETURN_IF_ERROR(l.board.Validate().Prefixed("lmc.board"));
@@ -168,7 +156,7 @@ Status Absent(Role role, const char* world_key) {
 Result<Machine> CreateMachineOn(const MachineConfig& config,
                                 std::shared_ptr<sim::SimWorld> simulated) {
   for (Role r : kRoles) {
-    const std::string& d = Named(config, r);
+    const std::string& d = DeviceField(config, r);
     static const std::map<Role, std::vector<std::string>> kKnown = {
         {Role::kScanner, {"sim", "lmc", "none"}},    {Role::kCamera, {"sim", "aravis", "none"}},
         {Role::kCoaxial, {"sim", "none"}},           {Role::kStage, {"sim", "grbl", "none"}},
@@ -263,7 +251,7 @@ Result<Machine> CreateMachineOn(const MachineConfig& config,
   }
   if (m.real) {
     for (Role r : kRoles) {
-      if (!Simulated(config, r) || !m.Has(r)) continue;
+      if (!IsSimulatedDevice(config, r) || !m.Has(r)) continue;
       m.warnings.push_back(std::string("dry run: the ") + RoleName(r) + " is simulated (machine." +
                            RoleKey(r) + ": " + DeviceFor(config, r) +
                            ") on a cell with real devices; what it " +
@@ -285,51 +273,6 @@ std::map<std::string, BackendFactory>& Registry() {
 }
 
 }  // namespace
-
-std::string& DeviceField(MachineConfig& c, Role role) {
-  switch (role) {
-    case Role::kScanner: return c.scanner;
-    case Role::kCamera: return c.camera;
-    case Role::kCoaxial: return c.coaxial;
-    case Role::kStage: return c.stage;
-    case Role::kAxis: return c.axis;
-    case Role::kProfiler: return c.profiler;
-    case Role::kOperator: return c.person;
-  }
-  return c.scanner;
-}
-
-std::string DeviceFor(const MachineConfig& c, Role role) {
-  const std::string& named = Named(c, role);
-  if (!named.empty()) return named;
-  return IsRealCell(c) ? "none" : "sim";
-}
-
-bool IsRealDevice(const MachineConfig& c, Role role) {
-  const std::string& d = Named(c, role);
-  switch (role) {
-    case Role::kScanner: return d == "lmc" && c.lmc.transport == "usb";
-    case Role::kCamera: return d == "aravis" && c.aravis.simulate_on.empty();
-    case Role::kProfiler: return d == "aravis" && c.aravis_profiler.simulate_on.empty();
-    case Role::kStage: return d == "grbl";
-    default: return false;
-  }
-}
-
-bool IsRealCell(const MachineConfig& c) {
-  for (Role r : kRoles) {
-    if (IsRealDevice(c, r)) return true;
-  }
-  return false;
-}
-
-bool NeedsSimulator(const MachineConfig& c) {
-  for (Role r : kRoles) {
-    if (Simulated(c, r)) return true;
-  }
-  // A person rehearsing on a simulated cell acts through the simulator's hands.
-  return !IsRealCell(c);
-}
 
 void RegisterBackend(const std::string& name, BackendFactory factory) {
   std::lock_guard<std::mutex> lock(g_mutex);

@@ -6,6 +6,9 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "insitu/calib/calibration.h"
 #include "insitu/calib/camera_calibration.h"
@@ -15,6 +18,7 @@
 #include "insitu/vision/targets.h"
 #include "job/cell.h"
 #include "job/output_path.h"
+#include "job/phase.h"
 #include "job/progress.h"
 #include "job/save_calibration.h"
 
@@ -129,6 +133,236 @@ Status SaveOverlay(const Frame& frame, const std::vector<Eigen::Vector2d>& point
   return picture->WritePng(path);
 }
 
+// What every phase of a calibrate job works with.
+struct CalibrateRun {
+  const CalibrateSpec& spec;
+  const RunOptions& options;
+  hw::Machine& machine;
+  Report& report;
+  std::filesystem::path dir;  // the job's output folder
+};
+
+// Every stage height the job will ask for is checked against the stage's travel before the
+// first frame, so a bad job file fails now and not after minutes of measuring.
+Status CheckStageTravel(const CalibrateSpec& spec, const hw::Stage& stage,
+                        const std::string& job_path) {
+  const double lo = stage.min_z_mm(), hi = stage.max_z_mm();
+  std::vector<std::pair<std::string, double>> heights{
+      {"intrinsics.stage_z_mm", spec.board_stage_z_mm}};
+  for (double z : spec.spot_stage_z_mm) heights.emplace_back("alignment.stage_z_mm", z);
+  if (spec.height) {
+    heights.emplace_back("height.z_start_mm", spec.z_start_mm);
+    heights.emplace_back("height.z_end_mm", spec.z_end_mm);
+  }
+  for (const auto& [key, z] : heights) {
+    if (z < lo || z > hi) {
+      char text[160];
+      std::snprintf(text, sizeof text, ": %g mm is outside the stage travel [%g, %g] mm", z, lo,
+                    hi);
+      return InvalidArgument(job_path + ": " + key + text);
+    }
+  }
+  return Status::Ok();
+}
+
+// 1. Intrinsics: the operator holds the board in `views` poses. The camera's identity comes
+// from the camera, its lens from the previous calibration.
+Result<calib::CameraIntrinsics> MeasureIntrinsics(CalibrateRun& run,
+                                                  const calib::CalibrationSet& previous) {
+  const CalibrateSpec& spec = run.spec;
+  hw::Machine& machine = run.machine;
+  Report& report = run.report;
+  const hw::CameraInfo info = machine.camera->info();
+  for (const Status& s : {machine.camera->SetBinning(1),
+                          machine.camera->SetExposure(spec.board_exposure_ms * 1e3),
+                          machine.stage->MoveTo(spec.board_stage_z_mm)}) {
+    if (!s.ok()) return PhaseFailure(s, "intrinsics: ");
+  }
+  (void)machine.scanner->StopPointer();
+  std::vector<std::vector<Eigen::Vector2d>> corners;
+  PhaseProgress progress(run.options, "intrinsics", "board views", spec.views);
+  const vision::ChessboardOptions board{spec.board.inner_cols, spec.board.inner_rows};
+  for (int k = 0; k < spec.views; ++k) {
+    if (Cancelled(run.options)) return Status(StatusCode::kCancelled, "cancelled");
+    const Status placed = machine.person->PlaceBoard(k, spec.views);
+    if (!placed.ok()) return PhaseFailure(placed);
+    auto frame = machine.camera->Grab();
+    if (!frame.ok()) return PhaseFailure(frame.status());
+    auto found = vision::FindChessboard(vision::ViewOf(*frame), board);
+    if (found.ok()) {
+      if (corners.empty()) {
+        const Status s =
+            SaveOverlay(*frame, *found, 0xd62728, (run.dir / "board_view.png").string());
+        if (s.ok()) report.artifacts["board_view"] = "board_view.png";
+      }
+      corners.push_back(*found);
+    } else {
+      report.warnings.push_back("view " + std::to_string(k) + ": " + found.status().message());
+    }
+    progress.Update(k + 1);
+  }
+  const Status removed = machine.person->RemoveBoard();
+  if (!removed.ok()) return PhaseFailure(removed);
+  calib::IntrinsicsSummary intr = calib::CalibrateIntrinsics(
+      corners, spec.board, info.sensor_width_px, info.sensor_height_px, spec.intrinsics);
+  report.metrics["intrinsics_views"] = intr.views;
+  report.metrics["intrinsics_coverage"] = intr.coverage;
+  if (!intr.ok) return FailedPrecondition("camera intrinsics: " + intr.message);
+  report.metrics["intrinsics_rms_px"] = intr.rms_px;
+  report.metrics["fx_px"] = intr.intrinsics.fx;
+  report.metrics["fy_px"] = intr.intrinsics.fy;
+  report.metrics["cx_px"] = intr.intrinsics.cx;
+  report.metrics["cy_px"] = intr.intrinsics.cy;
+  report.metrics["k1"] = intr.intrinsics.k1;
+  report.metrics["k2"] = intr.intrinsics.k2;
+  intr.intrinsics.model = info.model;
+  intr.intrinsics.serial = info.serial;
+  intr.intrinsics.lens = previous.camera.lens;
+  Logger("job")->info("intrinsics: {} views, RMS {:.3f} px, fx {:.1f} px", intr.views, intr.rms_px,
+                      intr.intrinsics.fx);
+  return intr.intrinsics;
+}
+
+// 2. Camera pose in the galvo frame: pointer spots on the bare stage plate at known
+// positions (a part would put them at unknown heights).
+Result<Eigen::Isometry3d> AlignCameraToGalvo(CalibrateRun& run,
+                                             const calib::CameraIntrinsics& intrinsics,
+                                             const calib::CalibrationSet& previous) {
+  const CalibrateSpec& spec = run.spec;
+  hw::Machine& machine = run.machine;
+  Report& report = run.report;
+  const Status cleared = machine.person->ClearTable();
+  if (!cleared.ok()) return PhaseFailure(cleared);
+  const Status exposed = machine.camera->SetExposure(spec.spot_exposure_ms * 1e3);
+  if (!exposed.ok()) return PhaseFailure(exposed, "alignment: ");
+  std::vector<calib::GalvoSpot> spots;
+  const int per_level = static_cast<int>(
+      std::pow(std::floor(2.0 * spec.spot_half_size_mm / spec.spot_step_mm + 1e-9) + 1, 2));
+  PhaseProgress spotting(run.options, "alignment", "spots",
+                         static_cast<double>(per_level * spec.spot_stage_z_mm.size()));
+  int spot_frames = 0;
+  std::vector<Eigen::Vector2d> first_level;
+  Frame last;
+  for (double z : spec.spot_stage_z_mm) {
+    const Status moved = machine.stage->MoveTo(z);
+    if (!moved.ok()) return PhaseFailure(moved, "alignment: ");
+    (void)machine.scanner->StopPointer();
+    auto dark = machine.camera->Grab();
+    if (!dark.ok()) return PhaseFailure(dark.status());
+    for (double x = -spec.spot_half_size_mm; x <= spec.spot_half_size_mm + 1e-9;
+         x += spec.spot_step_mm) {
+      for (double y = -spec.spot_half_size_mm; y <= spec.spot_half_size_mm + 1e-9;
+           y += spec.spot_step_mm) {
+        if (Cancelled(run.options)) return Status(StatusCode::kCancelled, "cancelled");
+        spotting.Update(spot_frames++);
+        const Eigen::Vector3d p(x, y, z);
+        const Status on = machine.scanner->StartPointerLine(p, p, 1.0);
+        if (!on.ok()) return PhaseFailure(on, "alignment: ");
+        machine.clock->SleepFor(0.005);
+        auto lit = machine.camera->Grab();
+        if (!lit.ok()) return PhaseFailure(lit.status());
+        auto spot = vision::FindSpot(vision::ViewOf(*lit), vision::ViewOf(*dark), {});
+        if (!spot.ok()) {
+          report.warnings.push_back("spot at (" + std::to_string(x) + ", " + std::to_string(y) +
+                                    ", " + std::to_string(z) + "): " + spot.status().message());
+          continue;
+        }
+        // On a head a field calibration has measured, the spot is where the measured head
+        // puts the pointer, not where it was asked to go: the pose then stays metric (the
+        // design map would fold the head's scale into the camera's pose).
+        Eigen::Vector3d where = p;
+        optics::ChiefRay ray;
+        if (previous.head.measured && previous.head.PointerRay(p, &ray)) where = ray.AtHeight(z);
+        spots.push_back({where, spot->center});
+        if (z == spec.spot_stage_z_mm.front()) first_level.push_back(spot->center);
+        last = std::move(*lit);
+      }
+    }
+    (void)machine.scanner->StopPointer();
+  }
+  spotting.Update(static_cast<double>(per_level * spec.spot_stage_z_mm.size()));
+  (void)machine.stage->MoveTo(0.0);
+  if (!last.bytes.empty() &&
+      SaveOverlay(last, first_level, 0x2ca02c, (run.dir / "spots.png").string()).ok()) {
+    report.artifacts["spots"] = "spots.png";
+  }
+  const calib::AlignmentSummary align =
+      calib::AlignCameraToGalvo(spots, intrinsics, spec.alignment);
+  report.metrics["alignment_spots"] = align.spots;
+  if (!align.ok) return FailedPrecondition("galvo alignment: " + align.message);
+  report.metrics["alignment_rms_px"] = align.rms_px;
+  report.metrics["alignment_rms_mm"] = align.rms_mm;
+  report.metrics["alignment_max_mm"] = align.max_mm;
+  Logger("job")->info("galvo alignment: {} spots, residual {:.4f} mm rms", align.spots,
+                      align.rms_mm);
+  return align.camera_from_galvo;
+}
+
+// 3. Height lookup: the bare plate at each stage height, a line at each offset (the camera's
+// exposure set by the caller).
+Result<calib::HeightLookup> CalibrateHeights(CalibrateRun& run) {
+  const CalibrateSpec& spec = run.spec;
+  hw::Machine& machine = run.machine;
+  Report& report = run.report;
+  const std::vector<double> zs = Steps(spec.z_start_mm, spec.z_end_mm, spec.z_step_mm);
+  const std::vector<double> xs = Steps(spec.x_start_mm, spec.x_end_mm, spec.x_step_mm);
+  std::vector<calib::HeightObservation> observations;
+  vision::StripeOptions stripe_options;
+  stripe_options.direction = vision::StripeDirection::kColumns;
+  vision::StripeExtractor extractor(stripe_options);
+  vision::StripeResult stripe;
+  PhaseProgress hp(run.options, "height calibration", "frames",
+                   static_cast<double>(zs.size() * xs.size()));
+  int done = 0;
+  for (double z : zs) {
+    const Status moved = machine.stage->MoveTo(z);
+    if (!moved.ok()) return PhaseFailure(moved, "height calibration: ");
+    for (double x : xs) {
+      if (Cancelled(run.options)) return Status(StatusCode::kCancelled, "cancelled");
+      const Status on = machine.scanner->StartPointerLine(
+          {x, spec.y_start_mm, 0.0}, {x, spec.y_end_mm, 0.0}, spec.speed_mm_per_s);
+      if (!on.ok()) return PhaseFailure(on, "height calibration: ");
+      machine.clock->SleepFor(0.005);
+      auto frame = machine.camera->Grab();
+      if (!frame.ok()) return PhaseFailure(frame.status());
+      const Status ex = extractor.Extract(vision::ViewOf(*frame), &stripe);
+      if (!ex.ok()) return PhaseFailure(ex);
+      calib::HeightObservation o{x, z, {}};
+      const double b = frame->binning;
+      for (size_t k = 0; k < stripe.status.size(); ++k) {
+        if (stripe.status[k] != vision::StripeStatus::kValid) continue;
+        // Full-sensor pixels: u_full = (u_b + 0.5) b - 0.5.
+        o.centres.emplace_back((stripe.u(static_cast<int>(k)) + 0.5) * b - 0.5,
+                               (stripe.v(static_cast<int>(k)) + 0.5) * b - 0.5);
+      }
+      observations.push_back(std::move(o));
+      hp.Update(++done);
+    }
+  }
+  (void)machine.scanner->StopPointer();
+  (void)machine.stage->MoveTo(0.0);
+  calib::HeightLookupSummary hs;
+  calib::HeightLookup lookup = calib::HeightLookup::Build(observations, &hs);
+  report.metrics["height_frames"] = static_cast<double>(observations.size());
+  if (!hs.ok) return FailedPrecondition("height calibration: " + hs.message);
+  report.metrics["height_curve_fit_rms_px"] = hs.fit_rms_px;
+  report.metrics["height_curve_fit_max_px"] = hs.fit_max_px;
+  report.metrics["height_curve_outliers"] = hs.outliers;
+  Logger("job")->info("height lookup: {} offsets x {} heights, curve fit {:.3f} px rms", xs.size(),
+                      zs.size(), hs.fit_rms_px);
+  return lookup;
+}
+
+// Writes the measured set beside the report and where the job file says.
+Status Save(CalibrateRun& run, const calib::CalibrationSet& set) {
+  const Status saved = SaveMeasuredCalibration(
+      set,
+      OutputPath(run.spec.output_path, "output.calibration", run.options, &run.report.warnings),
+      run.options.out_dir, &run.report);
+  if (!saved.ok()) return PhaseFailure(saved);
+  return Status::Ok();
+}
+
 }  // namespace
 
 Status CheckCalibrateJob(const LoadedJob& job) {
@@ -149,214 +383,36 @@ Result<Report> RunCalibrateJob(const LoadedJob& job, const RunOptions& options) 
       OpenCell(config, options,
                {hw::Role::kScanner, hw::Role::kCamera, hw::Role::kStage, hw::Role::kOperator},
                job));
-  const hw::CameraInfo info = machine.camera->info();
   INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir, machine.warnings));
-  const std::filesystem::path dir(options.out_dir);
   // A failed measurement is failed_precondition; a device's fault, the operator's abort or a
   // cancel keep their own code (exit 1 or 130, not 2: the input was fine).
-  auto finish = [&](bool ok, const std::string& error,
-                    StatusCode code = StatusCode::kFailedPrecondition) {
-    return FinishReport(report, ok, error, wall_start, options.out_dir, code);
+  auto finish = [&](const Status& failure) {
+    return FinishReport(report, failure.ok(), failure.message(), wall_start, options.out_dir,
+                        failure.code());
   };
-  auto log = Logger("job");
+  INSITU_RETURN_IF_ERROR(CheckStageTravel(spec, *machine.stage, job.path));
+  CalibrateRun run{spec, options, machine, report, options.out_dir};
 
-  // Every stage height the job will ask for is checked against the stage's travel before the
-  // first frame, so a bad job file fails now and not after minutes of measuring.
-  {
-    const double lo = machine.stage->min_z_mm(), hi = machine.stage->max_z_mm();
-    std::vector<std::pair<std::string, double>> heights{
-        {"intrinsics.stage_z_mm", spec.board_stage_z_mm}};
-    for (double z : spec.spot_stage_z_mm) heights.emplace_back("alignment.stage_z_mm", z);
-    if (spec.height) {
-      heights.emplace_back("height.z_start_mm", spec.z_start_mm);
-      heights.emplace_back("height.z_end_mm", spec.z_end_mm);
-    }
-    for (const auto& [key, z] : heights) {
-      if (z < lo || z > hi) {
-        char text[160];
-        std::snprintf(text, sizeof text, ": %g mm is outside the stage travel [%g, %g] mm", z,
-                      lo, hi);
-        return InvalidArgument(job.path + ": " + key + text);
-      }
-    }
-  }
-
-  // 1. Intrinsics: the operator holds the board in `views` poses.
-  for (const Status& s : {machine.camera->SetBinning(1),
-                          machine.camera->SetExposure(spec.board_exposure_ms * 1e3),
-                          machine.stage->MoveTo(spec.board_stage_z_mm)}) {
-    if (!s.ok()) return finish(false, "intrinsics: " + s.ToString(), s.code());
-  }
-  (void)machine.scanner->StopPointer();
-  std::vector<std::vector<Eigen::Vector2d>> corners;
-  PhaseProgress progress(options, "intrinsics", "board views", spec.views);
-  const vision::ChessboardOptions board{spec.board.inner_cols, spec.board.inner_rows};
-  for (int k = 0; k < spec.views; ++k) {
-    if (Cancelled(options)) return finish(false, "cancelled", StatusCode::kCancelled);
-  const Status placed = machine.person->PlaceBoard(k, spec.views);
-    if (!placed.ok()) return finish(false, placed.ToString(), placed.code());
-    auto frame = machine.camera->Grab();
-    if (!frame.ok()) return finish(false, frame.status().ToString(), frame.status().code());
-    auto found = vision::FindChessboard(vision::ViewOf(*frame), board);
-    if (found.ok()) {
-      if (corners.empty()) {
-        const Status s = SaveOverlay(*frame, *found, 0xd62728, (dir / "board_view.png").string());
-        if (s.ok()) report.artifacts["board_view"] = "board_view.png";
-      }
-      corners.push_back(*found);
-    } else {
-      report.warnings.push_back("view " + std::to_string(k) + ": " + found.status().message());
-    }
-    progress.Update(k + 1);
-  }
-  const Status removed = machine.person->RemoveBoard();
-  if (!removed.ok()) return finish(false, removed.ToString(), removed.code());
-  calib::IntrinsicsSummary intr = calib::CalibrateIntrinsics(
-      corners, spec.board, info.sensor_width_px, info.sensor_height_px, spec.intrinsics);
-  report.metrics["intrinsics_views"] = intr.views;
-  report.metrics["intrinsics_coverage"] = intr.coverage;
-  if (!intr.ok) return finish(false, "camera intrinsics: " + intr.message);
-  report.metrics["intrinsics_rms_px"] = intr.rms_px;
-  report.metrics["fx_px"] = intr.intrinsics.fx;
-  report.metrics["fy_px"] = intr.intrinsics.fy;
-  report.metrics["cx_px"] = intr.intrinsics.cx;
-  report.metrics["cy_px"] = intr.intrinsics.cy;
-  report.metrics["k1"] = intr.intrinsics.k1;
-  report.metrics["k2"] = intr.intrinsics.k2;
-  intr.intrinsics.model = info.model;
-  intr.intrinsics.serial = info.serial;
-  intr.intrinsics.lens = previous->camera.lens;
-  log->info("intrinsics: {} views, RMS {:.3f} px, fx {:.1f} px", intr.views, intr.rms_px,
-            intr.intrinsics.fx);
-
-  // 2. Camera pose in the galvo frame: pointer spots on the bare stage plate at known
-  // positions (a part would put them at unknown heights).
-  const Status cleared = machine.person->ClearTable();
-  if (!cleared.ok()) return finish(false, cleared.ToString(), cleared.code());
-  const Status exposed = machine.camera->SetExposure(spec.spot_exposure_ms * 1e3);
-  if (!exposed.ok()) return finish(false, "alignment: " + exposed.ToString(), exposed.code());
-  std::vector<calib::GalvoSpot> spots;
-  const int per_level =
-      static_cast<int>(std::pow(std::floor(2.0 * spec.spot_half_size_mm / spec.spot_step_mm + 1e-9) + 1, 2));
-  PhaseProgress spotting(options, "alignment", "spots",
-                         static_cast<double>(per_level * spec.spot_stage_z_mm.size()));
-  int spot_frames = 0;
-  std::vector<Eigen::Vector2d> first_level;
-  Frame last;
-  for (double z : spec.spot_stage_z_mm) {
-    const Status moved = machine.stage->MoveTo(z);
-    if (!moved.ok()) return finish(false, "alignment: " + moved.ToString(), moved.code());
-    (void)machine.scanner->StopPointer();
-    auto dark = machine.camera->Grab();
-    if (!dark.ok()) return finish(false, dark.status().ToString(), dark.status().code());
-    for (double x = -spec.spot_half_size_mm; x <= spec.spot_half_size_mm + 1e-9; x += spec.spot_step_mm) {
-      for (double y = -spec.spot_half_size_mm; y <= spec.spot_half_size_mm + 1e-9; y += spec.spot_step_mm) {
-        if (Cancelled(options)) return finish(false, "cancelled", StatusCode::kCancelled);
-        spotting.Update(spot_frames++);
-        const Eigen::Vector3d p(x, y, z);
-        const Status on = machine.scanner->StartPointerLine(p, p, 1.0);
-        if (!on.ok()) return finish(false, "alignment: " + on.ToString(), on.code());
-        machine.clock->SleepFor(0.005);
-        auto lit = machine.camera->Grab();
-        if (!lit.ok()) return finish(false, lit.status().ToString(), lit.status().code());
-        auto spot = vision::FindSpot(vision::ViewOf(*lit), vision::ViewOf(*dark), {});
-        if (!spot.ok()) {
-          report.warnings.push_back("spot at (" + std::to_string(x) + ", " + std::to_string(y) +
-                                    ", " + std::to_string(z) + "): " + spot.status().message());
-          continue;
-        }
-        // On a head a field calibration has measured, the spot is where the measured head
-        // puts the pointer, not where it was asked to go: the pose then stays metric (the
-        // design map would fold the head's scale into the camera's pose).
-        Eigen::Vector3d where = p;
-        optics::ChiefRay ray;
-        if (previous->head.measured && previous->head.PointerRay(p, &ray)) where = ray.AtHeight(z);
-        spots.push_back({where, spot->center});
-        if (z == spec.spot_stage_z_mm.front()) first_level.push_back(spot->center);
-        last = std::move(*lit);
-      }
-    }
-    (void)machine.scanner->StopPointer();
-  }
-  spotting.Update(static_cast<double>(per_level * spec.spot_stage_z_mm.size()));
-  (void)machine.stage->MoveTo(0.0);
-  if (!last.bytes.empty() && SaveOverlay(last, first_level, 0x2ca02c, (dir / "spots.png").string()).ok()) {
-    report.artifacts["spots"] = "spots.png";
-  }
-  const calib::AlignmentSummary align =
-      calib::AlignCameraToGalvo(spots, intr.intrinsics, spec.alignment);
-  report.metrics["alignment_spots"] = align.spots;
-  if (!align.ok) return finish(false, "galvo alignment: " + align.message);
-  report.metrics["alignment_rms_px"] = align.rms_px;
-  report.metrics["alignment_rms_mm"] = align.rms_mm;
-  report.metrics["alignment_max_mm"] = align.max_mm;
-  log->info("galvo alignment: {} spots, residual {:.4f} mm rms", align.spots, align.rms_mm);
-
-  // 3. Height lookup: the bare plate at each stage height, a line at each offset.
+  auto intrinsics = MeasureIntrinsics(run, *previous);
+  if (!intrinsics.ok()) return finish(intrinsics.status());
+  auto camera_from_galvo = AlignCameraToGalvo(run, *intrinsics, *previous);
+  if (!camera_from_galvo.ok()) return finish(camera_from_galvo.status());
   calib::HeightLookup lookup;
   if (spec.height) {
-    INSITU_RETURN_IF_ERROR(machine.camera->SetExposure(spec.height_exposure_ms * 1e3));
-    const std::vector<double> zs = Steps(spec.z_start_mm, spec.z_end_mm, spec.z_step_mm);
-    const std::vector<double> xs = Steps(spec.x_start_mm, spec.x_end_mm, spec.x_step_mm);
-    std::vector<calib::HeightObservation> observations;
-    vision::StripeOptions stripe_options;
-    stripe_options.direction = vision::StripeDirection::kColumns;
-    vision::StripeExtractor extractor(stripe_options);
-    vision::StripeResult stripe;
-    PhaseProgress hp(options, "height calibration", "frames", static_cast<double>(zs.size() * xs.size()));
-    int done = 0;
-    for (double z : zs) {
-      const Status moved = machine.stage->MoveTo(z);
-      if (!moved.ok()) {
-        return finish(false, "height calibration: " + moved.ToString(), moved.code());
-      }
-      for (double x : xs) {
-        if (Cancelled(options)) return finish(false, "cancelled", StatusCode::kCancelled);
-        const Status on = machine.scanner->StartPointerLine({x, spec.y_start_mm, 0.0},
-                                                            {x, spec.y_end_mm, 0.0},
-                                                            spec.speed_mm_per_s);
-        if (!on.ok()) return finish(false, "height calibration: " + on.ToString(), on.code());
-        machine.clock->SleepFor(0.005);
-        auto frame = machine.camera->Grab();
-        if (!frame.ok()) return finish(false, frame.status().ToString(), frame.status().code());
-        const Status ex = extractor.Extract(vision::ViewOf(*frame), &stripe);
-        if (!ex.ok()) return finish(false, ex.ToString(), ex.code());
-        calib::HeightObservation o{x, z, {}};
-        const double b = frame->binning;
-        for (size_t k = 0; k < stripe.status.size(); ++k) {
-          if (stripe.status[k] != vision::StripeStatus::kValid) continue;
-          // Full-sensor pixels: u_full = (u_b + 0.5) b - 0.5.
-          o.centres.emplace_back((stripe.u(static_cast<int>(k)) + 0.5) * b - 0.5,
-                                 (stripe.v(static_cast<int>(k)) + 0.5) * b - 0.5);
-        }
-        observations.push_back(std::move(o));
-        hp.Update(++done);
-      }
-    }
-    (void)machine.scanner->StopPointer();
-    (void)machine.stage->MoveTo(0.0);
-    calib::HeightLookupSummary hs;
-    lookup = calib::HeightLookup::Build(observations, &hs);
-    report.metrics["height_frames"] = static_cast<double>(observations.size());
-    if (!hs.ok) return finish(false, "height calibration: " + hs.message);
-    report.metrics["height_curve_fit_rms_px"] = hs.fit_rms_px;
-    report.metrics["height_curve_fit_max_px"] = hs.fit_max_px;
-    report.metrics["height_curve_outliers"] = hs.outliers;
-    log->info("height lookup: {} offsets x {} heights, curve fit {:.3f} px rms", xs.size(),
-              zs.size(), hs.fit_rms_px);
+    const Status exposed = machine.camera->SetExposure(spec.height_exposure_ms * 1e3);
+    if (!exposed.ok()) return finish(PhaseFailure(exposed, "height calibration: "));
+    auto heights = CalibrateHeights(run);
+    if (!heights.ok()) return finish(heights.status());
+    lookup = std::move(*heights);
   }
 
   calib::CalibrationSet set = *previous;
   set.height_lookup = lookup;
   set.produced_by = "calibrate job " + job.path;
   set.created = report.started;
-  set.camera = intr.intrinsics;
-  set.galvo.camera_from_galvo = align.camera_from_galvo;
-  const Status saved = SaveMeasuredCalibration(
-      set, OutputPath(spec.output_path, "output.calibration", options, &report.warnings),
-      options.out_dir, &report);
-  if (!saved.ok()) return finish(false, saved.ToString(), saved.code());
-  return finish(true, "");
+  set.camera = *intrinsics;
+  set.galvo.camera_from_galvo = *camera_from_galvo;
+  return finish(Save(run, set));
 }
 
 }  // namespace insitu::job

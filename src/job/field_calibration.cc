@@ -485,7 +485,7 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
                            Num(reach, 2) + " mm, beyond the head's field of +-" +
                            Num(head_info.field_half_size_mm, 2) + " mm");
   }
-  if (spec.pointer) {
+  if (spec.pointer && spec.route == "side") {  // the coaxial route never moves the stage
     const double lo = machine.stage->min_z_mm(), hi = machine.stage->max_z_mm();
     for (double z : spec.pointer_stage_z_mm) {
       if (z < lo || z > hi) {

@@ -146,8 +146,9 @@ std::vector<fit::ParameterGroup> Candidates(bool two_heights, bool two_focus = f
 class CellModel : public fit::GroupModel {
  public:
   // `groups`: the candidates in Group order, as fit::DiagnoseGroups lays out theta.
-  CellModel(const calib::CalibrationSet& cal, const StepGaugeSpec& gauge, std::vector<Pass> passes,
-            std::vector<Observation> obs, const std::vector<fit::ParameterGroup>& groups)
+  CellModel(const calib::CalibrationSet& cal, const inspect::StepGaugeSpec& gauge,
+            std::vector<Pass> passes, std::vector<Observation> obs,
+            const std::vector<fit::ParameterGroup>& groups)
       : cal_(cal),
         gauge_(gauge),
         passes_(std::move(passes)),
@@ -255,7 +256,7 @@ class CellModel : public fit::GroupModel {
 
   // The gauge placement moves which step a point is on only at the edges, which the margin
   // keeps out; each point's step is fixed once (at theta = 0), so the residuals are smooth.
-  static int StepOf(const StepGaugeSpec& g, const Vector2d& xy) {
+  static int StepOf(const inspect::StepGaugeSpec& g, const Vector2d& xy) {
     const double half_width = 0.5 * g.step_width_mm * g.heights_mm.size();
     const double x = xy.x() - g.center_x_mm + half_width;
     const double y = xy.y() - g.center_y_mm;
@@ -272,7 +273,7 @@ class CellModel : public fit::GroupModel {
 
  private:
   const calib::CalibrationSet& cal_;
-  StepGaugeSpec gauge_;
+  inspect::StepGaugeSpec gauge_;
   std::vector<Pass> passes_;
   std::vector<Observation> obs_;
   std::vector<Vector2d> normalized_;
@@ -456,7 +457,7 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
     return FinishReport(report, ok, error, wall_start, options.out_dir, code);
   };
   auto log = Logger("job");
-  const StepGaugeSpec& gauge = spec.scan.gauge;
+  const inspect::StepGaugeSpec& gauge = spec.scan.gauge;
   const std::string no_baseline = "no baseline at " + spec.baseline_path +
                                   ": run this job once right after calibrating, with "
                                   "--set diagnosis.record_baseline=true (what the calibration "

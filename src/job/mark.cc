@@ -8,8 +8,8 @@
 #include <vector>
 
 #include "insitu/core/log.h"
-#include "insitu/geometry/surface.h"
 #include "insitu/fit/extension.h"
+#include "insitu/geometry/surface.h"
 #include "insitu/pattern/codes.h"
 #include "insitu/pattern/correction_table.h"
 #include "insitu/pattern/galvo_list.h"
@@ -19,6 +19,7 @@
 #include "insitu/pattern/vector.h"
 #include "job/head_list.h"
 #include "job/mark_verify.h"
+#include "job/phase.h"
 #include "job/progress.h"
 #include "job/scan_job.h"
 
@@ -275,6 +276,288 @@ Result<std::vector<pattern::Segment2>> PatternSegments(const ItemSpec& s, PathSt
   return out;
 }
 
+// The items placed on the part in plan (galvo xy, mm), before the surface is known.
+struct Patterns {
+  std::vector<std::vector<pattern::Segment2>> placed_items;  // one per item
+  PathStats paths;                                           // over all items
+};
+
+// Reads, fills and places every item's pattern. Errors name the item's pattern in the job file.
+Result<Patterns> LoadPatterns(const MarkJobSpec& mark, const std::string& job_path) {
+  Patterns out;
+  PathStats& paths = out.paths;
+  for (size_t i = 0; i < mark.items.size(); ++i) {
+    const std::string where =
+        mark.items.size() > 1 ? ": items[" + std::to_string(i) + "].pattern" : ": pattern";
+    PathStats st;
+    auto segments = PatternSegments(mark.items[i], &st);
+    paths.input_points += st.input_points;
+    paths.mark_points += st.mark_points;
+    paths.max_error_mm = std::max(paths.max_error_mm, st.max_error_mm);
+    paths.jump_mm += st.jump_mm * mark.items[i].placement.scale;
+    paths.jump_file_mm += st.jump_file_mm * mark.items[i].placement.scale;
+    if (!segments.ok()) return segments.status().Prefixed(job_path + where);
+    if (segments->empty()) return InvalidArgument(job_path + where + ": nothing to mark");
+    if (mark.items[i].anchor == "centre") {
+      Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e300), hi = -lo;
+      for (const auto& sg : *segments) {
+        lo = lo.cwiseMin(sg.a.cwiseMin(sg.b));
+        hi = hi.cwiseMax(sg.a.cwiseMax(sg.b));
+      }
+      const Eigen::Vector2d mid = 0.5 * (lo + hi);
+      for (auto& sg : *segments) sg.a -= mid, sg.b -= mid;
+    }
+    out.placed_items.push_back(pattern::Place(*segments, mark.items[i].placement));
+  }
+  return out;
+}
+
+// The field correction the job file names (head.correction or head.model_extension); empty
+// when it names none.
+Result<pattern::FieldCorrection> LoadCorrection(const MarkJobSpec& mark,
+                                                const std::string& job_path) {
+  pattern::FieldCorrection correction;
+  if (!mark.correction_file.empty()) {
+    auto table = pattern::CorrectionTable::Load(mark.correction_file);
+    if (!table.ok()) return table.status().Prefixed(job_path + ": head.correction");
+    correction = table->AsFieldCorrection();
+  }
+  if (!mark.extension_file.empty()) {
+    // The diagnosed model of where commands land: every point is sent as the command that
+    // lands on it.
+    auto ext = fit::LoadExtension(mark.extension_file);
+    if (!ext.ok()) return ext.status().Prefixed(job_path + ": head.model_extension");
+    correction = [e = *ext](const Eigen::Vector3d& p) {
+      const Eigen::Vector2d c = e.Inverse(p.head<2>(), p.z());
+      return Eigen::Vector3d(c.x(), c.y(), p.z());
+    };
+  }
+  return correction;
+}
+
+// The scan head as the calibration knows it: the marking beam's direction, and the measured
+// head's correction unless the job file names its own. Returns true when the job's correction
+// is used in place of a head the calibration measured.
+bool UseCalibratedHead(const calib::CalibrationSet& calibration, MarkJobSpec* mark,
+                       pattern::FieldCorrection* correction) {
+  // A focus offset is taken along the marking beam (pattern::MarkSettings::beam_up).
+  mark->laser.beam_up = [head = calibration.head.model](const Eigen::Vector3d& cmd) {
+    optics::ChiefRay ray;
+    return head.Land(cmd, {}, &ray) ? ray.up : Eigen::Vector3d(Eigen::Vector3d::UnitZ());
+  };
+  if (!*correction && calibration.head.measured) {
+    *correction = MeasuredHeadCorrection(calibration);
+  } else if (*correction && calibration.head.measured) {
+    return true;
+  }
+  return false;
+}
+
+// The list's limits are the head's own unless the job narrows them; never beyond them.
+Status FitHeadLimits(const hw::ScannerInfo& head, const std::string& job_path, MarkJobSpec* mark) {
+  if (!mark->head_field_set && head.field_half_size_mm > 0) {
+    mark->head.field_half_size_mm = head.field_half_size_mm;
+  }
+  if (!mark->head_focus_set && head.focus_range_mm > 0) {
+    mark->head.focus_half_range_mm = head.focus_range_mm;
+  }
+  if (mark->head.field_half_size_mm > head.field_half_size_mm ||
+      mark->head.focus_half_range_mm > head.focus_range_mm) {
+    return InvalidArgument(job_path + ": head: limits beyond the scan head's own (field +-" +
+                           std::to_string(head.field_half_size_mm) + " mm, focus +-" +
+                           std::to_string(head.focus_range_mm) + " mm)");
+  }
+  return Status::Ok();
+}
+
+// What every phase of a mark job after bring-up works with.
+struct MarkRun {
+  const ScanJobSpec& spec;
+  const MarkJobSpec& mark;
+  const RunOptions& options;
+  ScanMachine& up;
+  Report& report;
+  std::filesystem::path dir;  // the job's output folder
+};
+
+bool Cancelled(const RunOptions& options) {
+  return options.cancel != nullptr && options.cancel->load();
+}
+
+// 1. Measure the part where it lies.
+Result<ScanOutput> ScanPart(MarkRun& run) {
+  Logger("job")->info("mark: scanning {} lines", run.spec.scan.line_count());
+  PhaseProgress progress(run.options, "scan", "lines", run.spec.scan.line_count());
+  auto scanned = RunScan(
+      run.up.machine, run.spec.scan, run.spec.extraction, run.up.calibration,
+      [&](int done, int) { progress.Update(done); }, run.options.cancel);
+  if (!scanned.ok()) return PhaseFailure(scanned.status());
+  const Status saved = geometry::SaveCloudPly(scanned->cloud, (run.dir / "cloud.ply").string());
+  if (!saved.ok()) return PhaseFailure(saved);
+  run.report.artifacts["cloud"] = "cloud.ply";
+  run.report.metrics["points"] = static_cast<double>(scanned->cloud.size());
+  return scanned;
+}
+
+// 2. Put the pattern on the measured surface: the surface from the cloud, the items mapped
+// onto it by wrapping (seed 000 case 3) where they ask for it.
+Result<geometry::SurfaceModel> Place(MarkRun& run, const geometry::Cloud& cloud,
+                                     std::vector<std::vector<pattern::Segment2>>* placed_items) {
+  const MarkJobSpec& mark = run.mark;
+  if (mark.surface.radius_mm < run.spec.scan.line_spacing_mm) {
+    run.report.warnings.push_back(
+        "surface.radius_mm is smaller than the scan's "
+        "line spacing: points between two scan "
+        "lines find only one of them and get no height "
+        "(set it to the spacing or more)");
+  }
+  auto surface = geometry::SurfaceModel::Build(cloud, mark.surface);
+  if (!surface.ok()) return PhaseFailure(surface.status());
+  for (size_t i = 0; i < mark.items.size(); ++i) {
+    if (mark.items[i].mapping != "wrap") continue;
+    auto wrapped = pattern::WrapOnSurface((*placed_items)[i], mark.items[i].placement.offset_mm,
+                                          *surface, mark.laser.max_step_mm);
+    if (!wrapped.ok()) return PhaseFailure(wrapped.status(), "item " + std::to_string(i) + ": ");
+    (*placed_items)[i] = std::move(*wrapped);
+  }
+  return surface;
+}
+
+// The marking list on the surface, with what planning it did and what it could not mark.
+Result<std::vector<pattern::ListCommand>> Plan(
+    MarkRun& run, const geometry::SurfaceModel& surface,
+    const std::vector<std::vector<pattern::Segment2>>& placed_items, const PathStats& paths,
+    pattern::MarkPlanReport* plan) {
+  const MarkJobSpec& mark = run.mark;
+  Report& report = run.report;
+  std::vector<pattern::Segment2> placed;
+  for (const auto& item : placed_items) placed.insert(placed.end(), item.begin(), item.end());
+  auto list = pattern::PlanMarking(placed, surface, mark.laser, plan);
+  if (!list.ok()) return PhaseFailure(list.status());
+  report.metrics["pattern_segments"] = plan->segments;
+  report.metrics["marks"] = plan->marks;
+  report.metrics["marked_length_mm"] = plan->marked_length_mm;
+  report.metrics["pattern_points"] = plan->points;
+  report.metrics["points_without_surface"] = plan->points_without_surface;
+  report.metrics["surface_z_min_mm"] = plan->z_min_mm;
+  report.metrics["surface_z_max_mm"] = plan->z_max_mm;
+  report.metrics["list_duration_s"] = pattern::ListDuration(*list);
+  if (paths.jump_file_mm > 0) {
+    report.metrics["outline_jump_mm"] = paths.jump_mm;
+    report.metrics["outline_jump_mm_file_order"] = paths.jump_file_mm;
+  }
+  if (paths.input_points > 0) {
+    report.metrics["path_points_in"] = paths.input_points;
+    report.metrics["path_points_out"] = paths.mark_points;
+    report.metrics["path_max_error_um"] = paths.max_error_mm * 1e3;
+  }
+  for (const ItemSpec& it : mark.items) {
+    if (!it.hatch_angles_deg.empty() && it.hatch_spacing_mm < mark.spot_diameter_mm) {
+      report.warnings.push_back("hatch spacing " + std::to_string(it.hatch_spacing_mm) +
+                                " mm is below the " + std::to_string(mark.spot_diameter_mm) +
+                                " mm spot: neighbouring lines overlap, every area is marked more "
+                                "than once (more "
+                                "heat, deeper marks)");
+    }
+  }
+  if (plan->points_without_surface > 0) {
+    const Eigen::Vector2d& p = plan->unmarked_mm.front();
+    char where[96];
+    std::snprintf(where, sizeof where, " (the first at x = %.2f, y = %.2f mm)", p.x(), p.y());
+    report.warnings.push_back(
+        std::to_string(plan->points_without_surface) + " of " + std::to_string(plan->points) +
+        " pattern points have no measured surface and are not marked" + where);
+  }
+  return list;
+}
+
+// 3. The list in head units, every point checked against the field and the
+// focus range.
+Status Emit(MarkRun& run, const std::vector<pattern::ListCommand>& list,
+            const pattern::FieldCorrection& correction) {
+  auto emitted = pattern::Emit(list, run.mark.head, correction);
+  if (!emitted.ok()) return PhaseFailure(emitted.status(), "galvo list: ");
+  {
+    std::ofstream f(run.dir / "galvo_list.txt");
+    f << pattern::FormatEmitted(*emitted, run.mark.head);
+    if (!f.good()) return DeviceError("cannot write " + (run.dir / "galvo_list.txt").string());
+  }
+  run.report.artifacts["galvo_list"] = "galvo_list.txt";
+  run.report.metrics["list_commands"] = static_cast<double>(emitted->size());
+  return Status::Ok();
+}
+
+// The side camera's frame before marking and its exposure, kept for the frame after
+// (nothing when verification is off).
+struct SideBefore {
+  Frame frame;
+  double exposure_us = 0.0;
+};
+
+// 4. Mark: armed only for the list. The side camera looks first, for the
+// comparison after.
+Result<SideBefore> Mark(MarkRun& run, const std::vector<pattern::ListCommand>& list,
+                        const pattern::MarkPlanReport& plan,
+                        const pattern::FieldCorrection& correction) {
+  hw::Machine& machine = run.up.machine;
+  if (Cancelled(run.options)) return Status(StatusCode::kCancelled, "cancelled");
+  SideBefore before;
+  if (run.mark.verify.enabled) {
+    auto f = GrabSideView(machine, run.mark.verify, &before.exposure_us);
+    if (!f.ok()) return PhaseFailure(f.status(), "side camera before marking: ");
+    before.frame = std::move(*f);
+  }
+  auto log = Logger("job");
+  {
+    const Status armed = machine.scanner->Arm();
+    if (!armed.ok()) return PhaseFailure(armed, "arm: ");
+    ArmGuard guard{machine.scanner.get()};
+    log->info("mark: {} marks, {:.1f} mm, ~{:.1f} s", plan.marks, plan.marked_length_mm,
+              run.report.metrics["list_duration_s"]);
+    // Cancel reaches the head while the list runs: it aborts within one of its clock ticks.
+    const double list_ms = std::round(run.report.metrics["list_duration_s"] * 1e3);
+    PhaseProgress marking(run.options, "mark", "ms", list_ms);
+    hw::ListControl control;
+    control.abort = run.options.cancel;
+    control.progress = [&](double fraction) { marking.Update(std::round(fraction * list_ms)); };
+    const Status ran = machine.scanner->ExecuteList(ToHeadList(list, correction), control);
+    if (!ran.ok()) return PhaseFailure(ran, "marking: ");
+  }
+  log->info("mark: done");
+  return before;
+}
+
+// 5. Look at what was marked.
+Status Verify(MarkRun& run, const geometry::SurfaceModel& surface,
+              const std::vector<std::vector<pattern::Segment2>>& placed_items,
+              const std::vector<pattern::ListCommand>& list, const SideBefore& before) {
+  const MarkJobSpec& mark = run.mark;
+  if (Cancelled(run.options)) return Status(StatusCode::kCancelled, "cancelled");
+  PhaseProgress verifying(run.options, "verify", "steps", 1);
+  double side_exposure_us = before.exposure_us;
+  auto after = GrabSideView(run.up.machine, mark.verify, &side_exposure_us);
+  if (!after.ok()) return PhaseFailure(after.status(), "side camera after marking: ");
+  MarkDesign design;
+  for (size_t i = 0; i < mark.items.size(); ++i) {
+    const ItemSpec& it = mark.items[i];
+    ItemDesign d;
+    d.placed = placed_items[i];
+    d.spacing_mm = it.hatch_angles_deg.empty() ? 0.0 : it.hatch_spacing_mm;
+    d.hatch_angle_deg =
+        it.hatch_angles_deg.empty() ? 0.0 : it.hatch_angles_deg.front() + it.placement.rotation_deg;
+    design.items.push_back(std::move(d));
+  }
+  for (const pattern::ListCommand& c : list) {
+    if (c.op == pattern::ListOp::kMarkAbs) design.mark_points.push_back(c.p);
+  }
+  const Status verified =
+      VerifyMarks(run.up.machine, run.up.calibration, surface, design, mark.verify, before.frame,
+                  *after, run.options.out_dir, &run.report);
+  if (!verified.ok()) return PhaseFailure(verified, "verification: ");
+  verifying.Update(1);
+  return Status::Ok();
+}
+
 }  // namespace
 
 Status CheckMarkJob(const LoadedJob& job) {
@@ -295,226 +578,41 @@ Result<Report> RunMarkJob(const LoadedJob& job, const RunOptions& options) {
   }));
   // The patterns are read before the machine moves: a bad pattern file fails
   // now.
-  std::vector<std::vector<pattern::Segment2>> placed_items;
-  PathStats paths;  // over all items
-  std::vector<pattern::Segment2> placed;
-  for (size_t i = 0; i < mark.items.size(); ++i) {
-    const std::string where =
-        mark.items.size() > 1 ? ": items[" + std::to_string(i) + "].pattern" : ": pattern";
-    PathStats st;
-    auto segments = PatternSegments(mark.items[i], &st);
-    paths.input_points += st.input_points;
-    paths.mark_points += st.mark_points;
-    paths.max_error_mm = std::max(paths.max_error_mm, st.max_error_mm);
-    paths.jump_mm += st.jump_mm * mark.items[i].placement.scale;
-    paths.jump_file_mm += st.jump_file_mm * mark.items[i].placement.scale;
-    if (!segments.ok()) return segments.status().Prefixed(job.path + where);
-    if (segments->empty()) return InvalidArgument(job.path + where + ": nothing to mark");
-    if (mark.items[i].anchor == "centre") {
-      Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e300), hi = -lo;
-      for (const auto& sg : *segments) {
-        lo = lo.cwiseMin(sg.a.cwiseMin(sg.b));
-        hi = hi.cwiseMax(sg.a.cwiseMax(sg.b));
-      }
-      const Eigen::Vector2d mid = 0.5 * (lo + hi);
-      for (auto& sg : *segments) sg.a -= mid, sg.b -= mid;
-    }
-    placed_items.push_back(pattern::Place(*segments, mark.items[i].placement));
-    placed.insert(placed.end(), placed_items.back().begin(), placed_items.back().end());
-  }
-  pattern::FieldCorrection correction;
-  bool bypassed_measured_head = false;
-  if (!mark.correction_file.empty()) {
-    auto table = pattern::CorrectionTable::Load(mark.correction_file);
-    if (!table.ok()) return table.status().Prefixed(job.path + ": head.correction");
-    correction = table->AsFieldCorrection();
-  }
-  if (!mark.extension_file.empty()) {
-    // The diagnosed model of where commands land: every point is sent as the command that
-    // lands on it.
-    auto ext = fit::LoadExtension(mark.extension_file);
-    if (!ext.ok()) return ext.status().Prefixed(job.path + ": head.model_extension");
-    correction = [e = *ext](const Eigen::Vector3d& p) {
-      const Eigen::Vector2d c = e.Inverse(p.head<2>(), p.z());
-      return Eigen::Vector3d(c.x(), c.y(), p.z());
-    };
-  }
+  INSITU_ASSIGN_OR_RETURN(Patterns patterns, LoadPatterns(mark, job.path));
+  INSITU_ASSIGN_OR_RETURN(pattern::FieldCorrection correction, LoadCorrection(mark, job.path));
   INSITU_ASSIGN_OR_RETURN(ScanMachine up, BringUp(job, spec, machine_config, options));
-  // A focus offset is taken along the marking beam (pattern::MarkSettings::beam_up).
-  mark.laser.beam_up = [head = up.calibration.head.model](const Eigen::Vector3d& cmd) {
-    optics::ChiefRay ray;
-    return head.Land(cmd, {}, &ray) ? ray.up : Eigen::Vector3d(Eigen::Vector3d::UnitZ());
-  };
-  if (!correction && up.calibration.head.measured) {
-    correction = MeasuredHeadCorrection(up.calibration);
-  } else if (correction && up.calibration.head.measured) {
-    bypassed_measured_head = true;
-  }
-  {
-    // The list's limits are the head's own unless the job narrows them.
-    const hw::ScannerInfo head = up.machine.scanner->info();
-    if (!mark.head_field_set && head.field_half_size_mm > 0) {
-      mark.head.field_half_size_mm = head.field_half_size_mm;
-    }
-    if (!mark.head_focus_set && head.focus_range_mm > 0) {
-      mark.head.focus_half_range_mm = head.focus_range_mm;
-    }
-    if (mark.head.field_half_size_mm > head.field_half_size_mm ||
-        mark.head.focus_half_range_mm > head.focus_range_mm) {
-      return InvalidArgument(job.path + ": head: limits beyond the scan head's own (field +-" +
-                             std::to_string(head.field_half_size_mm) + " mm, focus +-" +
-                             std::to_string(head.focus_range_mm) + " mm)");
-    }
-  }
+  const bool bypassed_measured_head = UseCalibratedHead(up.calibration, &mark, &correction);
+  INSITU_RETURN_IF_ERROR(FitHeadLimits(up.machine.scanner->info(), job.path, &mark));
 
-  INSITU_ASSIGN_OR_RETURN(Report report, StartReport(job.kind, options.out_dir, up.machine.warnings));
+  INSITU_ASSIGN_OR_RETURN(Report report,
+                          StartReport(job.kind, options.out_dir, up.machine.warnings));
   if (bypassed_measured_head) {
     report.warnings.push_back(
         "head.correction / head.model_extension is used in place of the head the calibration "
         "measured (field_calibration): marks follow that table, not the measured head");
   }
-  const std::filesystem::path dir(options.out_dir);
-  auto finish = [&](bool ok, const std::string& error) {
-    return FinishReport(report, ok, error, wall_start, options.out_dir, StatusCode::kDeviceError);
+  // Once the cell is up, a phase's failure ends the job as a device error with its report.
+  auto finish = [&](const Status& failure) {
+    return FinishReport(report, failure.ok(), failure.message(), wall_start, options.out_dir,
+                        StatusCode::kDeviceError);
   };
-  auto log = Logger("job");
+  MarkRun run{spec, mark, options, up, report, options.out_dir};
 
-  // 1. Measure the part where it lies.
-  log->info("mark: scanning {} lines", spec.scan.line_count());
-  PhaseProgress progress(options, "scan", "lines", spec.scan.line_count());
-  auto scanned = RunScan(
-      up.machine, spec.scan, spec.extraction, up.calibration,
-      [&](int done, int) { progress.Update(done); }, options.cancel);
-  if (!scanned.ok()) return finish(false, scanned.status().ToString());
-  const Status saved = geometry::SaveCloudPly(scanned->cloud, (dir / "cloud.ply").string());
-  if (!saved.ok()) return finish(false, saved.ToString());
-  report.artifacts["cloud"] = "cloud.ply";
-  report.metrics["points"] = static_cast<double>(scanned->cloud.size());
-
-  // 2. Put the pattern on the measured surface.
-  if (mark.surface.radius_mm < spec.scan.line_spacing_mm) {
-    report.warnings.push_back(
-        "surface.radius_mm is smaller than the scan's "
-        "line spacing: points between two scan "
-        "lines find only one of them and get no height "
-        "(set it to the spacing or more)");
-  }
-  auto surface = geometry::SurfaceModel::Build(scanned->cloud, mark.surface);
-  if (!surface.ok()) return finish(false, surface.status().ToString());
-  for (size_t i = 0; i < mark.items.size(); ++i) {
-    if (mark.items[i].mapping != "wrap") continue;
-    auto wrapped = pattern::WrapOnSurface(placed_items[i], mark.items[i].placement.offset_mm,
-                                          *surface, mark.laser.max_step_mm);
-    if (!wrapped.ok())
-      return finish(false, "item " + std::to_string(i) + ": " + wrapped.status().ToString());
-    placed_items[i] = std::move(*wrapped);
-  }
-  placed.clear();
-  for (const auto& item : placed_items) placed.insert(placed.end(), item.begin(), item.end());
+  auto scanned = ScanPart(run);
+  if (!scanned.ok()) return finish(scanned.status());
+  auto surface = Place(run, scanned->cloud, &patterns.placed_items);
+  if (!surface.ok()) return finish(surface.status());
   pattern::MarkPlanReport plan;
-  auto list = pattern::PlanMarking(placed, *surface, mark.laser, &plan);
-  if (!list.ok()) return finish(false, list.status().ToString());
-  report.metrics["pattern_segments"] = plan.segments;
-  report.metrics["marks"] = plan.marks;
-  report.metrics["marked_length_mm"] = plan.marked_length_mm;
-  report.metrics["pattern_points"] = plan.points;
-  report.metrics["points_without_surface"] = plan.points_without_surface;
-  report.metrics["surface_z_min_mm"] = plan.z_min_mm;
-  report.metrics["surface_z_max_mm"] = plan.z_max_mm;
-  report.metrics["list_duration_s"] = pattern::ListDuration(*list);
-  if (paths.jump_file_mm > 0) {
-    report.metrics["outline_jump_mm"] = paths.jump_mm;
-    report.metrics["outline_jump_mm_file_order"] = paths.jump_file_mm;
-  }
-  if (paths.input_points > 0) {
-    report.metrics["path_points_in"] = paths.input_points;
-    report.metrics["path_points_out"] = paths.mark_points;
-    report.metrics["path_max_error_um"] = paths.max_error_mm * 1e3;
-  }
-  for (const ItemSpec& it : mark.items) {
-    if (!it.hatch_angles_deg.empty() && it.hatch_spacing_mm < mark.spot_diameter_mm) {
-      report.warnings.push_back("hatch spacing " + std::to_string(it.hatch_spacing_mm) +
-                                " mm is below the " + std::to_string(mark.spot_diameter_mm) +
-                                " mm spot: neighbouring lines overlap, every area is marked more "
-                                "than once (more "
-                                "heat, deeper marks)");
-    }
-  }
-  if (plan.points_without_surface > 0) {
-    const Eigen::Vector2d& p = plan.unmarked_mm.front();
-    char where[96];
-    std::snprintf(where, sizeof where, " (the first at x = %.2f, y = %.2f mm)", p.x(), p.y());
-    report.warnings.push_back(
-        std::to_string(plan.points_without_surface) + " of " + std::to_string(plan.points) +
-        " pattern points have no measured surface and are not marked" + where);
-  }
-
-  // 3. The list in head units, every point checked against the field and the
-  // focus range.
-  auto emitted = pattern::Emit(*list, mark.head, correction);
-  if (!emitted.ok()) return finish(false, "galvo list: " + emitted.status().ToString());
-  {
-    std::ofstream f(dir / "galvo_list.txt");
-    f << pattern::FormatEmitted(*emitted, mark.head);
-    if (!f.good()) return finish(false, "cannot write " + (dir / "galvo_list.txt").string());
-  }
-  report.artifacts["galvo_list"] = "galvo_list.txt";
-  report.metrics["list_commands"] = static_cast<double>(emitted->size());
-
-  // 4. Mark: armed only for the list. The side camera looks first, for the
-  // comparison after.
-  if (options.cancel != nullptr && options.cancel->load()) return finish(false, "cancelled");
-  Frame before;
-  double side_exposure_us = 0.0;
+  auto list = Plan(run, *surface, patterns.placed_items, patterns.paths, &plan);
+  if (!list.ok()) return finish(list.status());
+  if (const Status emitted = Emit(run, *list, correction); !emitted.ok()) return finish(emitted);
+  auto before = Mark(run, *list, plan, correction);
+  if (!before.ok()) return finish(before.status());
   if (mark.verify.enabled) {
-    auto f = GrabSideView(up.machine, mark.verify, &side_exposure_us);
-    if (!f.ok()) return finish(false, "side camera before marking: " + f.status().ToString());
-    before = std::move(*f);
+    const Status verified = Verify(run, *surface, patterns.placed_items, *list, *before);
+    if (!verified.ok()) return finish(verified);
   }
-  {
-    const Status armed = up.machine.scanner->Arm();
-    if (!armed.ok()) return finish(false, "arm: " + armed.ToString());
-    ArmGuard guard{up.machine.scanner.get()};
-    log->info("mark: {} marks, {:.1f} mm, ~{:.1f} s", plan.marks, plan.marked_length_mm,
-              report.metrics["list_duration_s"]);
-    // Cancel reaches the head while the list runs: it aborts within one of its clock ticks.
-    const double list_ms = std::round(report.metrics["list_duration_s"] * 1e3);
-    PhaseProgress marking(options, "mark", "ms", list_ms);
-    hw::ListControl control;
-    control.abort = options.cancel;
-    control.progress = [&](double fraction) { marking.Update(std::round(fraction * list_ms)); };
-    const Status ran = up.machine.scanner->ExecuteList(ToHeadList(*list, correction), control);
-    if (!ran.ok()) return finish(false, "marking: " + ran.ToString());
-  }
-  log->info("mark: done");
-
-  // 5. Look at what was marked.
-  if (mark.verify.enabled) {
-    if (options.cancel != nullptr && options.cancel->load()) return finish(false, "cancelled");
-    PhaseProgress verifying(options, "verify", "steps", 1);
-    auto after = GrabSideView(up.machine, mark.verify, &side_exposure_us);
-    if (!after.ok())
-      return finish(false, "side camera after marking: " + after.status().ToString());
-    MarkDesign design;
-    for (size_t i = 0; i < mark.items.size(); ++i) {
-      const ItemSpec& it = mark.items[i];
-      ItemDesign d;
-      d.placed = placed_items[i];
-      d.spacing_mm = it.hatch_angles_deg.empty() ? 0.0 : it.hatch_spacing_mm;
-      d.hatch_angle_deg = it.hatch_angles_deg.empty()
-                              ? 0.0
-                              : it.hatch_angles_deg.front() + it.placement.rotation_deg;
-      design.items.push_back(std::move(d));
-    }
-    for (const pattern::ListCommand& c : *list) {
-      if (c.op == pattern::ListOp::kMarkAbs) design.mark_points.push_back(c.p);
-    }
-    const Status verified = VerifyMarks(up.machine, up.calibration, *surface, design, mark.verify,
-                                        before, *after, options.out_dir, &report);
-    if (!verified.ok()) return finish(false, "verification: " + verified.ToString());
-    verifying.Update(1);
-  }
-  return finish(true, "");
+  return finish(Status::Ok());
 }
 
 }  // namespace insitu::job

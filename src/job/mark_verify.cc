@@ -180,70 +180,41 @@ std::vector<Eigen::Vector2d> FullyHatchedSpots(const ItemDesign& d, double half_
   return spots;
 }
 
-}  // namespace
-
-Status VerifyOptions::Validate() const {
-  if (!(coaxial_pixel_um > 0)) return InvalidArgument("coaxial_pixel_um must be > 0");
-  if (!(coaxial_exposure_ms > 0)) return InvalidArgument("coaxial_exposure_ms must be > 0");
-  if (spacing_spots < 1) return InvalidArgument("spacing_spots must be >= 1");
-  if (focus_points < 0) return InvalidArgument("focus_points must be >= 0");
-  if (!(focus_step_mm > 0) || !(focus_sweep_mm >= 2 * focus_step_mm)) {
-    return InvalidArgument("focus_sweep_mm must be >= 2 focus_step_mm > 0");
-  }
-  if (!(side_target_level > 10 && side_target_level < 250)) {
-    return InvalidArgument("side_target_level must be in (10, 250) grey levels");
-  }
-  return Status::Ok();
-}
-
-Result<Frame> GrabSideView(hw::Machine& machine, const VerifyOptions& o, double* exposure_us) {
-  INSITU_RETURN_IF_ERROR(machine.scanner->StopPointer());
-  INSITU_RETURN_IF_ERROR(machine.camera->SetBinning(1));
-  double exposure = *exposure_us > 0 ? *exposure_us : 100e3;
-  for (int attempt = 0; attempt < 4; ++attempt) {
-    INSITU_RETURN_IF_ERROR(machine.camera->SetExposure(exposure));
-    INSITU_ASSIGN_OR_RETURN(Frame f, machine.camera->Grab());
-    if (*exposure_us > 0) return f;  // the exposure of the frame before marking
-    // The bare part's level: the 98th percentile of the frame's centre half.
-    std::vector<int> v;
-    for (int y = f.height / 4; y < 3 * f.height / 4; y += 4) {
-      for (int x = f.width / 4; x < 3 * f.width / 4; x += 4) v.push_back(f.at(x, y));
-    }
-    std::nth_element(v.begin(), v.begin() + static_cast<long>(0.98 * (v.size() - 1)), v.end());
-    const double level = v[static_cast<size_t>(0.98 * (v.size() - 1))] * 255.0 / f.max_value();
-    if (std::abs(level - o.side_target_level) < 0.15 * o.side_target_level || attempt == 3) {
-      *exposure_us = exposure;
-      return f;
-    }
-    exposure = std::clamp(exposure * o.side_target_level / std::max(level, 2.0), 1e3, 2e6);
-  }
-  return FailedPrecondition("side camera: no usable exposure");
-}
-
-Status VerifyMarks(hw::Machine& machine, const calib::CalibrationSet& cal,
-                   const geometry::SurfaceModel& surface, const MarkDesign& design,
-                   const VerifyOptions& o, const Frame& before, const Frame& after,
-                   const std::string& out_dir, Report* report) {
-  auto log = Logger("job");
-  const std::filesystem::path dir(out_dir);
-  const size_t n_items = design.items.size();
-  std::vector<Eigen::Vector2d> design_c(n_items);
-  std::vector<double> design_rms(n_items);
-  std::vector<Eigen::Vector2d> box_lo(n_items, Eigen::Vector2d::Constant(1e300)),
-      box_hi(n_items, Eigen::Vector2d::Constant(-1e300));
-  for (size_t k = 0; k < n_items; ++k) {
-    Moments(design.items[k].placed, &design_c[k], &design_rms[k]);
-    for (const auto& s : design.items[k].placed) {
-      box_lo[k] = box_lo[k].cwiseMin(s.a.cwiseMin(s.b));
-      box_hi[k] = box_hi[k].cwiseMax(s.a.cwiseMax(s.b));
-    }
-  }
+// The design's shape per item (galvo xy, mm) and the mean focus height of the list's marks.
+struct DesignShape {
+  std::vector<Eigen::Vector2d> centroid;
+  std::vector<double> rms;
+  std::vector<Eigen::Vector2d> box_lo, box_hi;
   double z_mean = 0.0;
-  for (const auto& p : design.mark_points) z_mean += p.z();
-  z_mean /= std::max<size_t>(1, design.mark_points.size());
+};
 
-  // 1. Placement and size from what darkened in the side camera.
-  const SideRays rays(cal, surface, after.binning);
+DesignShape ShapeOf(const MarkDesign& design) {
+  const size_t n_items = design.items.size();
+  DesignShape d;
+  d.centroid.resize(n_items);
+  d.rms.resize(n_items);
+  d.box_lo.assign(n_items, Eigen::Vector2d::Constant(1e300));
+  d.box_hi.assign(n_items, Eigen::Vector2d::Constant(-1e300));
+  for (size_t k = 0; k < n_items; ++k) {
+    Moments(design.items[k].placed, &d.centroid[k], &d.rms[k]);
+    for (const auto& s : design.items[k].placed) {
+      d.box_lo[k] = d.box_lo[k].cwiseMin(s.a.cwiseMin(s.b));
+      d.box_hi[k] = d.box_hi[k].cwiseMax(s.a.cwiseMax(s.b));
+    }
+  }
+  for (const auto& p : design.mark_points) d.z_mean += p.z();
+  d.z_mean /= std::max<size_t>(1, design.mark_points.size());
+  return d;
+}
+
+// A rectangle of the side camera's frame, pixels.
+struct Window {
+  int x0 = 0, y0 = 0, width = 0, height = 0;
+};
+
+// The pattern's window in the frame (its projection and a margin), clipped to the frame.
+Window PatternWindow(const SideRays& rays, const MarkDesign& design, double z_mean,
+                     const Frame& after) {
   Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e300), hi = -lo;
   for (const auto& item : design.items) {
     for (const auto& s : item.placed) {
@@ -254,127 +225,176 @@ Status VerifyMarks(hw::Machine& machine, const calib::CalibrationSet& cal,
       }
     }
   }
-  // The pattern's window in the frame (its projection and a margin), clipped to the frame.
   const int margin = 25;
-  const int x0 = std::max(0, static_cast<int>(lo.x()) - margin);
-  const int y0 = std::max(0, static_cast<int>(lo.y()) - margin);
-  const int roi_w = std::max(0, std::min(after.width, static_cast<int>(hi.x()) + margin) - x0);
-  const int roi_h = std::max(0, std::min(after.height, static_cast<int>(hi.y()) + margin) - y0);
-  if (before.width != after.width || before.height != after.height || roi_w * roi_h < 16) {
+  Window w;
+  w.x0 = std::max(0, static_cast<int>(lo.x()) - margin);
+  w.y0 = std::max(0, static_cast<int>(lo.y()) - margin);
+  w.width = std::max(0, std::min(after.width, static_cast<int>(hi.x()) + margin) - w.x0);
+  w.height = std::max(0, std::min(after.height, static_cast<int>(hi.y()) + margin) - w.y0);
+  return w;
+}
+
+// The marks the side camera saw, per item: darkening-weighted (and surface-area weighted)
+// centroid and second moment on the measured surface, galvo xy.
+struct SeenMarks {
+  std::vector<double> total, r2;
+  std::vector<Eigen::Vector2d> centroid;
+  size_t pixels = 0;  // pixels that darkened
+};
+
+Result<SeenMarks> FindMarks(const SideRays& rays, const DesignShape& shape, const Frame& before,
+                            const Frame& after, const Window& win) {
+  const size_t n_items = shape.centroid.size();
+  const vision::ImageView after_roi =
+      vision::ViewOf(after).Crop(win.x0, win.y0, win.width, win.height);
+  // A mark is where the window darkened beyond its noise (most of it is unmarked).
+  auto dark = vision::FindDarkened(
+      vision::ViewOf(before).Crop(win.x0, win.y0, win.width, win.height), after_roi);
+  if (!dark.ok()) return dark.status().Prefixed("verify: side camera");
+  std::vector<Eigen::Vector2d> px;
+  for (const Eigen::Vector2d& p : dark->px) px.push_back(p + Eigen::Vector2d(win.x0, win.y0));
+  std::vector<double> w = std::move(dark->depth);
+  std::vector<double> area;
+  const auto xy = rays.Trace(px, shape.z_mean, &area);
+  // Each marked pixel belongs to the item whose footprint (+0.5 mm) holds it.
+  SeenMarks seen;
+  seen.total.assign(n_items, 0.0);
+  seen.r2.assign(n_items, 0.0);
+  seen.centroid.assign(n_items, Eigen::Vector2d::Zero());
+  seen.pixels = px.size();
+  std::vector<double>& total = seen.total;
+  std::vector<Eigen::Vector2d>& c = seen.centroid;
+  std::vector<int> owner(px.size(), -1);
+  const Eigen::Vector2d grow(0.5, 0.5);
+  for (size_t i = 0; i < xy.size(); ++i) {
+    w[i] *= area[i];
+    if (!xy[i] || !(w[i] > 0)) continue;
+    for (size_t k = 0; k < n_items; ++k) {
+      if ((xy[i]->array() >= (shape.box_lo[k] - grow).array()).all() &&
+          (xy[i]->array() <= (shape.box_hi[k] + grow).array()).all()) {
+        owner[i] = static_cast<int>(k);
+        c[k] += w[i] * *xy[i];
+        total[k] += w[i];
+        break;
+      }
+    }
+  }
+  for (size_t k = 0; k < n_items; ++k) {
+    if (total[k] > 0) c[k] /= total[k];
+  }
+  for (size_t i = 0; i < xy.size(); ++i) {
+    if (owner[i] >= 0) seen.r2[owner[i]] += w[i] * (*xy[i] - c[owner[i]]).squaredNorm();
+  }
+  return seen;
+}
+
+// Placement and size errors against the design: the worst item's, and every item's when
+// there are several.
+void ReportPlacement(const DesignShape& shape, const SeenMarks& seen, Report* report) {
+  auto log = Logger("job");
+  const size_t n_items = shape.centroid.size();
+  const std::vector<Eigen::Vector2d>& design_c = shape.centroid;
+  const std::vector<Eigen::Vector2d>& c = seen.centroid;
+  double worst = -1.0, worst_size = 0.0;
+  for (size_t k = 0; k < n_items; ++k) {
+    if (seen.total[k] <= 0) {
+      report->warnings.push_back("placement of item " + std::to_string(k) +
+                                 " not verified: no marks seen by the side camera");
+      continue;
+    }
+    const double err = (c[k] - design_c[k]).norm();
+    const double size_pct = 100.0 * (std::sqrt(seen.r2[k] / seen.total[k]) / shape.rms[k] - 1.0);
+    if (err > worst) {
+      worst = err;
+      report->metrics["placement_error_x_mm"] = c[k].x() - design_c[k].x();
+      report->metrics["placement_error_y_mm"] = c[k].y() - design_c[k].y();
+    }
+    if (std::abs(size_pct) >= std::abs(worst_size)) worst_size = size_pct;
+    if (n_items > 1) {
+      report->metrics["item" + std::to_string(k) + "_placement_error_mm"] = err;
+      report->metrics["item" + std::to_string(k) + "_size_error_pct"] = size_pct;
+    }
+    log->info(
+        "verify: item {} centred at ({:.3f}, {:.3f}) mm, design "
+        "({:.3f}, {:.3f}): {:.3f} mm off",
+        k, c[k].x(), c[k].y(), design_c[k].x(), design_c[k].y(), err);
+  }
+  if (worst >= 0) {
+    report->metrics["placement_error_mm"] = worst;
+    report->metrics["pattern_size_error_pct"] = worst_size;
+    report->metrics["side_marked_pixels"] = static_cast<double>(seen.pixels);
+  }
+}
+
+// mark.png: the side camera's view of the marks, 4x, with the design over
+// it. A picture that cannot be written is a warning.
+void SaveMarkPicture(const SideRays& rays, const MarkDesign& design, const DesignShape& shape,
+                     const SeenMarks& seen, const Frame& after, const Window& win,
+                     const std::filesystem::path& dir, Report* report) {
+  const vision::ImageView after_roi =
+      vision::ViewOf(after).Crop(win.x0, win.y0, win.width, win.height);
+  Status saved = Status::Ok();
+  if (auto view = vision::Canvas::FromGray(after_roi, 4.0); view.ok()) {
+    vision::Canvas overlay = view->Clone();
+    const auto to_view = [&](const Eigen::Vector2d& p) {
+      const Eigen::Vector2d q = rays.Project({p.x(), p.y(), shape.z_mean});
+      return Eigen::Vector2d(static_cast<int>(std::lround(4.0 * (q.x() - win.x0) + 1.5)),
+                             static_cast<int>(std::lround(4.0 * (q.y() - win.y0) + 1.5)));
+    };
+    constexpr int kGreen = 0x00C800, kRed = 0xFF0000;
+    for (const auto& item : design.items) {
+      for (const auto& s : item.placed) {
+        overlay.Line(to_view(s.a), to_view(s.b), {.rgb = kGreen, .smooth = true});
+      }
+    }
+    view->Blend(overlay, 0.35);
+    for (size_t k = 0; k < shape.centroid.size(); ++k) {
+      view->Cross(to_view(shape.centroid[k]), 24, {.rgb = kGreen, .thickness = 2});
+      if (seen.total[k] > 0) {
+        view->Cross(to_view(seen.centroid[k]), 24, {.rgb = kRed, .thickness = 2});
+      }
+    }
+    view->Text("design (green) over the side camera after marking; red: measured centre",
+               Eigen::Vector2d(8, 20), 0.5, {.rgb = 0xFFFF00});
+    saved = view->WritePng((dir / "mark.png").string());
+  } else {
+    saved = view.status();
+  }
+  if (saved.ok()) {
+    report->artifacts["mark"] = "mark.png";
+  } else {
+    report->warnings.push_back("mark.png: " + saved.message());
+  }
+}
+
+// 1. Placement and size from what darkened in the side camera.
+Status VerifyPlacement(const calib::CalibrationSet& cal, const geometry::SurfaceModel& surface,
+                       const MarkDesign& design, const DesignShape& shape, const Frame& before,
+                       const Frame& after, const std::filesystem::path& dir, Report* report) {
+  const SideRays rays(cal, surface, after.binning);
+  const Window win = PatternWindow(rays, design, shape.z_mean, after);
+  if (before.width != after.width || before.height != after.height || win.width * win.height < 16) {
     report->warnings.push_back(
         "placement not verified: the pattern is not in the side camera's view");
-  } else {
-    const vision::ImageView after_roi = vision::ViewOf(after).Crop(x0, y0, roi_w, roi_h);
-    // A mark is where the window darkened beyond its noise (most of it is unmarked).
-    auto dark =
-        vision::FindDarkened(vision::ViewOf(before).Crop(x0, y0, roi_w, roi_h), after_roi);
-    if (!dark.ok()) return dark.status().Prefixed("verify: side camera");
-    std::vector<Eigen::Vector2d> px;
-    for (const Eigen::Vector2d& p : dark->px) px.push_back(p + Eigen::Vector2d(x0, y0));
-    std::vector<double> w = std::move(dark->depth);
-    std::vector<double> area;
-    const auto xy = rays.Trace(px, z_mean, &area);
-    // Each marked pixel belongs to the item whose footprint (+0.5 mm) holds it.
-    std::vector<double> total(n_items, 0.0), r2(n_items, 0.0);
-    std::vector<Eigen::Vector2d> c(n_items, Eigen::Vector2d::Zero());
-    std::vector<int> owner(px.size(), -1);
-    const Eigen::Vector2d grow(0.5, 0.5);
-    for (size_t i = 0; i < xy.size(); ++i) {
-      w[i] *= area[i];
-      if (!xy[i] || !(w[i] > 0)) continue;
-      for (size_t k = 0; k < n_items; ++k) {
-        if ((xy[i]->array() >= (box_lo[k] - grow).array()).all() &&
-            (xy[i]->array() <= (box_hi[k] + grow).array()).all()) {
-          owner[i] = static_cast<int>(k);
-          c[k] += w[i] * *xy[i];
-          total[k] += w[i];
-          break;
-        }
-      }
-    }
-    for (size_t k = 0; k < n_items; ++k) {
-      if (total[k] > 0) c[k] /= total[k];
-    }
-    for (size_t i = 0; i < xy.size(); ++i) {
-      if (owner[i] >= 0) r2[owner[i]] += w[i] * (*xy[i] - c[owner[i]]).squaredNorm();
-    }
-    double worst = -1.0, worst_size = 0.0;
-    for (size_t k = 0; k < n_items; ++k) {
-      if (total[k] <= 0) {
-        report->warnings.push_back("placement of item " + std::to_string(k) +
-                                   " not verified: no marks seen by the side camera");
-        continue;
-      }
-      const double err = (c[k] - design_c[k]).norm();
-      const double size_pct = 100.0 * (std::sqrt(r2[k] / total[k]) / design_rms[k] - 1.0);
-      if (err > worst) {
-        worst = err;
-        report->metrics["placement_error_x_mm"] = c[k].x() - design_c[k].x();
-        report->metrics["placement_error_y_mm"] = c[k].y() - design_c[k].y();
-      }
-      if (std::abs(size_pct) >= std::abs(worst_size)) worst_size = size_pct;
-      if (n_items > 1) {
-        report->metrics["item" + std::to_string(k) + "_placement_error_mm"] = err;
-        report->metrics["item" + std::to_string(k) + "_size_error_pct"] = size_pct;
-      }
-      log->info(
-          "verify: item {} centred at ({:.3f}, {:.3f}) mm, design "
-          "({:.3f}, {:.3f}): {:.3f} mm off",
-          k, c[k].x(), c[k].y(), design_c[k].x(), design_c[k].y(), err);
-    }
-    if (worst >= 0) {
-      report->metrics["placement_error_mm"] = worst;
-      report->metrics["pattern_size_error_pct"] = worst_size;
-      report->metrics["side_marked_pixels"] = static_cast<double>(px.size());
-    }
-    // mark.png: the side camera's view of the marks, 4x, with the design over
-    // it.
-    Status saved = Status::Ok();
-    if (auto view = vision::Canvas::FromGray(after_roi, 4.0); view.ok()) {
-      vision::Canvas overlay = view->Clone();
-      const auto to_view = [&](const Eigen::Vector2d& p) {
-        const Eigen::Vector2d q = rays.Project({p.x(), p.y(), z_mean});
-        return Eigen::Vector2d(static_cast<int>(std::lround(4.0 * (q.x() - x0) + 1.5)),
-                               static_cast<int>(std::lround(4.0 * (q.y() - y0) + 1.5)));
-      };
-      constexpr int kGreen = 0x00C800, kRed = 0xFF0000;
-      for (const auto& item : design.items) {
-        for (const auto& s : item.placed) {
-          overlay.Line(to_view(s.a), to_view(s.b), {.rgb = kGreen, .smooth = true});
-        }
-      }
-      view->Blend(overlay, 0.35);
-      for (size_t k = 0; k < n_items; ++k) {
-        view->Cross(to_view(design_c[k]), 24, {.rgb = kGreen, .thickness = 2});
-        if (total[k] > 0) view->Cross(to_view(c[k]), 24, {.rgb = kRed, .thickness = 2});
-      }
-      view->Text("design (green) over the side camera after marking; red: measured centre",
-                 Eigen::Vector2d(8, 20), 0.5, {.rgb = 0xFFFF00});
-      saved = view->WritePng((dir / "mark.png").string());
-    } else {
-      saved = view.status();
-    }
-    if (saved.ok()) {
-      report->artifacts["mark"] = "mark.png";
-    } else {
-      report->warnings.push_back("mark.png: " + saved.message());
-    }
-  }
-
-  if (!machine.coaxial) {
-    report->warnings.push_back("no coaxial camera: line spacing and focus not verified");
     return Status::Ok();
   }
-  hw::Camera& coax = *machine.coaxial;
-  INSITU_RETURN_IF_ERROR(coax.SetExposure(o.coaxial_exposure_ms * 1e3));
+  INSITU_ASSIGN_OR_RETURN(const SeenMarks seen, FindMarks(rays, shape, before, after, win));
+  ReportPlacement(shape, seen, report);
+  SaveMarkPicture(rays, design, shape, seen, after, win, dir, report);
+  return Status::Ok();
+}
+
+// 2. Line spacing (and width where the lines stand apart) at fully hatched
+// spots, per spacing asked.
+Status VerifyLineSpacing(hw::Scanner& scanner, hw::Camera& coax,
+                         const geometry::SurfaceModel& surface, const MarkDesign& design,
+                         const VerifyOptions& o, const std::filesystem::path& dir, Report* report) {
+  auto log = Logger("job");
   const auto height_at = [&](const Eigen::Vector2d& p) -> std::optional<double> {
     const auto s = surface.At(p.x(), p.y());
     if (!s) return std::nullopt;
     return s->z_mm;
   };
-
-  // 2. Line spacing (and width where the lines stand apart) at fully hatched
-  // spots, per spacing asked.
   struct Pool {
     double sum = 0.0, var = 0.0, width = 0.0, width_sd = 0.0;
     int gaps = 0, spots = 0, widths = 0;
@@ -398,7 +418,7 @@ Status VerifyMarks(hw::Machine& machine, const calib::CalibrationSet& cal,
     for (const Eigen::Vector2d& spot : spots) {
       const auto z = height_at(spot);
       if (!z) continue;
-      INSITU_RETURN_IF_ERROR(Aim(*machine.scanner, {spot.x(), spot.y(), *z}));
+      INSITU_RETURN_IF_ERROR(Aim(scanner, {spot.x(), spot.y(), *z}));
       INSITU_ASSIGN_OR_RETURN(Frame f, coax.Grab());
       vision::HatchMeasureOptions m;
       m.pixel_um = o.coaxial_pixel_um;
@@ -459,8 +479,13 @@ Status VerifyMarks(hw::Machine& machine, const calib::CalibrationSet& cal,
       }
     }
   }
+  return Status::Ok();
+}
 
-  // 3. Focus: sweep the dynamic focus at marked points; sharpest = the surface.
+// 3. Focus: sweep the dynamic focus at marked points; sharpest = the surface.
+Status VerifyFocus(hw::Scanner& scanner, hw::Camera& coax, const MarkDesign& design,
+                   const VerifyOptions& o, Report* report) {
+  auto log = Logger("job");
   const int np = std::min<int>(o.focus_points, static_cast<int>(design.mark_points.size()));
   double worst = -1.0, sum2 = 0.0;
   int measured = 0;
@@ -470,7 +495,7 @@ Status VerifyMarks(hw::Machine& machine, const calib::CalibrationSet& cal,
     std::vector<double> zs, sharp;
     bool ok = true;
     for (double dz = -o.focus_sweep_mm; dz <= o.focus_sweep_mm + 1e-9; dz += o.focus_step_mm) {
-      if (!Aim(*machine.scanner, {p.x(), p.y(), p.z() + dz}).ok()) {
+      if (!Aim(scanner, {p.x(), p.y(), p.z() + dz}).ok()) {
         ok = false;
         break;
       }
@@ -479,8 +504,8 @@ Status VerifyMarks(hw::Machine& machine, const calib::CalibrationSet& cal,
       zs.push_back(p.z() + dz);
       // The image centre, 0.5 mm square: the marks right at the point.
       const int half = static_cast<int>(250.0 / o.coaxial_pixel_um);
-      sharp.push_back(
-          vision::Sharpness(vision::ViewOf(*f), {0.5 * (f->width - 1), 0.5 * (f->height - 1)}, half));
+      sharp.push_back(vision::Sharpness(vision::ViewOf(*f),
+                                        {0.5 * (f->width - 1), 0.5 * (f->height - 1)}, half));
     }
     const auto best = ok ? vision::BestFocus(zs, sharp)
                          : Result<double>(FailedPrecondition("sweep left the focus range"));
@@ -504,6 +529,64 @@ Status VerifyMarks(hw::Machine& machine, const calib::CalibrationSet& cal,
     report->warnings.push_back("focus not verified: no sweep found a sharpest image");
   }
   return Status::Ok();
+}
+
+}  // namespace
+
+Status VerifyOptions::Validate() const {
+  if (!(coaxial_pixel_um > 0)) return InvalidArgument("coaxial_pixel_um must be > 0");
+  if (!(coaxial_exposure_ms > 0)) return InvalidArgument("coaxial_exposure_ms must be > 0");
+  if (spacing_spots < 1) return InvalidArgument("spacing_spots must be >= 1");
+  if (focus_points < 0) return InvalidArgument("focus_points must be >= 0");
+  if (!(focus_step_mm > 0) || !(focus_sweep_mm >= 2 * focus_step_mm)) {
+    return InvalidArgument("focus_sweep_mm must be >= 2 focus_step_mm > 0");
+  }
+  if (!(side_target_level > 10 && side_target_level < 250)) {
+    return InvalidArgument("side_target_level must be in (10, 250) grey levels");
+  }
+  return Status::Ok();
+}
+
+Result<Frame> GrabSideView(hw::Machine& machine, const VerifyOptions& o, double* exposure_us) {
+  INSITU_RETURN_IF_ERROR(machine.scanner->StopPointer());
+  INSITU_RETURN_IF_ERROR(machine.camera->SetBinning(1));
+  double exposure = *exposure_us > 0 ? *exposure_us : 100e3;
+  for (int attempt = 0; attempt < 4; ++attempt) {
+    INSITU_RETURN_IF_ERROR(machine.camera->SetExposure(exposure));
+    INSITU_ASSIGN_OR_RETURN(Frame f, machine.camera->Grab());
+    if (*exposure_us > 0) return f;  // the exposure of the frame before marking
+    // The bare part's level: the 98th percentile of the frame's centre half.
+    std::vector<int> v;
+    for (int y = f.height / 4; y < 3 * f.height / 4; y += 4) {
+      for (int x = f.width / 4; x < 3 * f.width / 4; x += 4) v.push_back(f.at(x, y));
+    }
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(0.98 * (v.size() - 1)), v.end());
+    const double level = v[static_cast<size_t>(0.98 * (v.size() - 1))] * 255.0 / f.max_value();
+    if (std::abs(level - o.side_target_level) < 0.15 * o.side_target_level || attempt == 3) {
+      *exposure_us = exposure;
+      return f;
+    }
+    exposure = std::clamp(exposure * o.side_target_level / std::max(level, 2.0), 1e3, 2e6);
+  }
+  return FailedPrecondition("side camera: no usable exposure");
+}
+
+Status VerifyMarks(hw::Machine& machine, const calib::CalibrationSet& cal,
+                   const geometry::SurfaceModel& surface, const MarkDesign& design,
+                   const VerifyOptions& o, const Frame& before, const Frame& after,
+                   const std::string& out_dir, Report* report) {
+  const std::filesystem::path dir(out_dir);
+  const DesignShape shape = ShapeOf(design);
+  INSITU_RETURN_IF_ERROR(VerifyPlacement(cal, surface, design, shape, before, after, dir, report));
+  if (!machine.coaxial) {
+    report->warnings.push_back("no coaxial camera: line spacing and focus not verified");
+    return Status::Ok();
+  }
+  hw::Camera& coax = *machine.coaxial;
+  INSITU_RETURN_IF_ERROR(coax.SetExposure(o.coaxial_exposure_ms * 1e3));
+  INSITU_RETURN_IF_ERROR(
+      VerifyLineSpacing(*machine.scanner, coax, surface, design, o, dir, report));
+  return VerifyFocus(*machine.scanner, coax, design, o, report);
 }
 
 }  // namespace insitu::job

@@ -24,7 +24,10 @@ inline std::string OutputPath(const std::string& path, const std::string& key,
     const auto [end, rest] = std::mismatch(dir.begin(), dir.end(), full.begin(), full.end());
     if (end == dir.end()) return path;
   }
-  const std::string inside = (fs::path(options.out_dir) / fs::path(path).filename()).string();
+  // Prefixed: the job's own files (report.json, state.json, calibration.yaml) keep theirs.
+  const std::string name = fs::path(path).filename().string();
+  const std::string inside =
+      (fs::path(options.out_dir) / ("output_" + (name.empty() ? "file" : name))).string();
   warnings->push_back(key + ": written to " + inside + ", not " + path +
                       " (a job run by insitud writes under its results folder only)");
   return inside;

@@ -80,7 +80,7 @@ void ReadArtifact(ConfigReader& r, ScanJobSpec* spec) {
       a.Read("bin_mm", &spec->gauge.bin_mm);
       if (a.ok()) a.FailFromValidate(spec->gauge.Validate());
     } else if (spec->artifact == "insert") {
-      InsertSpec& in = spec->insert;
+      inspect::InsertSpec& in = spec->insert;
       a.Read("thickness_mm", &in.thickness_mm);
       a.Read("edge_mm", &in.edge_mm);
       a.Read("hole_diameter_mm", &in.hole_diameter_mm);

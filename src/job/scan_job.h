@@ -9,11 +9,11 @@
 #include "insitu/calib/calibration.h"
 #include "insitu/core/config.h"
 #include "insitu/hw/cell.h"
-#include "insitu/job/runner.h"
-#include "insitu/job/insert.h"
+#include "insitu/inspect/insert.h"
+#include "insitu/inspect/step_gauge.h"
 #include "insitu/job/job_file.h"
+#include "insitu/job/runner.h"
 #include "insitu/job/scan.h"
-#include "insitu/job/step_gauge.h"
 #include "insitu/vision/stripe.h"
 
 namespace insitu::job {
@@ -24,8 +24,8 @@ struct ScanJobSpec {
   vision::StripeOptions extraction;
   int method = 1;
   std::string artifact;  // "", step_gauge or insert
-  StepGaugeSpec gauge;
-  InsertSpec insert;
+  inspect::StepGaugeSpec gauge;
+  inspect::InsertSpec insert;
   bool save_frames = false;
 };
 

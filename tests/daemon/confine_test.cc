@@ -53,7 +53,8 @@ TEST(Confine, SetNeverRedirectsAFile) {
         "items=[{\"pattern\": {\"file\": \"/etc/x\"}}]", "profiler=- mount_file: /x",
         "output.calibration=/etc/x", "machine.calibration=/tmp/c.yaml", "design.file=/etc/passwd",
         "profiler.mount_file=/tmp/m.yaml", "head.correction=/tmp/t.csv", "world=/tmp/w.yaml",
-        "output=/tmp", "diagnosis.baseline=/tmp/b.csv", "head.model_extension=/tmp/e.yaml"}) {
+        "output=/tmp", "diagnosis.baseline=/tmp/b.csv", "head.model_extension=/tmp/e.yaml",
+        "diagnosis=record_baseline:\ttrue", "head=[[1], {a: 2}]"}) {
     const Status s = CheckSetKeys({bad});
     EXPECT_FALSE(s.ok()) << bad;
     EXPECT_NE(s.message().find("set: '"), std::string::npos) << s.message();

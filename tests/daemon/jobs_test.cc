@@ -218,7 +218,8 @@ TEST(Jobs, TheOperatorIsAskedThroughPromptsAndAnswersWithAck) {
   ASSERT_TRUE(server.Start().ok());
   Client c(server.port());
   ASSERT_EQ(c.Call(R"({"id": 1, "cmd": "subscribe"})")["ok"], true);
-  EXPECT_EQ(c.Call(R"({"id": 2, "cmd": "ack"})")["error"]["code"], "wrong_state");
+  EXPECT_EQ(c.Call(R"({"id": 2, "cmd": "ack", "prompt_id": 1})")["error"]["code"], "wrong_state");
+  EXPECT_EQ(c.Call(R"({"id": 2, "cmd": "ack"})")["error"]["code"], "bad_argument");
   ASSERT_EQ(c.Call(R"({"id": 3, "cmd": "arm"})")["ok"], true);
   const json started = c.Call(RunLine(
       4, R"("job": "config/jobs/calibrate.yaml", "set": {"machine.operator": "person"})"));
@@ -239,7 +240,13 @@ TEST(Jobs, TheOperatorIsAskedThroughPromptsAndAnswersWithAck) {
   ASSERT_TRUE(second.is_object());
   EXPECT_NE(second["request"].get<std::string>().find("view 2 of"), std::string::npos)
       << second.dump();
-  ASSERT_EQ(c.Call(R"({"id": 9, "cmd": "ack", "abort": true})")["ok"], true);
+  // The first prompt's answer again (a double click) does not confirm the second.
+  EXPECT_EQ(c.Call(json({{"id", 10}, {"cmd", "ack"}, {"prompt_id", first["prompt_id"]}}).dump())
+                ["error"]["code"],
+            "not_found");
+  ASSERT_EQ(c.Call(json({{"id", 9}, {"cmd", "ack"}, {"prompt_id", second["prompt_id"]},
+                         {"abort", true}}).dump())["ok"],
+            true);
   const json end = WaitForJobEnd(c, started["job_id"]);
   ASSERT_EQ(end["status"], "cancelled") << end.dump();
   EXPECT_NE(end["reason"].get<std::string>().find("the operator aborted"), std::string::npos)
@@ -317,7 +324,7 @@ TEST(Jobs, AJobReadsInsideTheRootsAndWritesUnderItsResults) {
   const json result = c.Call(json({{"id", 5}, {"cmd", "result"}, {"job_id", started["job_id"]}}).dump());
   const std::filesystem::path dir =
       std::filesystem::path(o.results_dir) / started["job_id"].get<std::string>();
-  EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(dir) / "mount.yaml")) << dir;
+  EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(dir) / "output_mount.yaml")) << dir;
   EXPECT_NE(result["report"]["warnings"].dump().find("written to"), std::string::npos)
       << result["report"].dump();
 }
@@ -337,6 +344,27 @@ TEST(Jobs, ADaemonsCellIsNotAClientsToChange) {
   EXPECT_EQ(refused["error"]["code"], "bad_argument") << refused.dump();
   EXPECT_NE(refused["error"]["message"].get<std::string>().find("machine.stage"),
             std::string::npos);
+  EXPECT_EQ(TheNextJobRuns(c), "done");
+}
+
+// A job whose cell lacks a role it needs is refused at `run`, by the role's key, and the machine
+// stays armed for the next one: the coaxial field calibration needs no stage, the side one does.
+TEST(Jobs, AJobNeedingARoleTheCellLacksIsRefusedAtRun) {
+  Server server(Loopback("insitu_jobs_roles"));
+  ASSERT_TRUE(server.Start().ok());
+  Client c(server.port());
+  ASSERT_EQ(c.Call(R"({"id": 0, "cmd": "subscribe"})")["ok"], true);
+  ASSERT_EQ(c.Call(R"({"id": 1, "cmd": "arm"})")["ok"], true);
+  const json refused = c.Call(RunLine(
+      2, R"("job": "config/jobs/field_calibration.yaml", "set": {"machine.stage": "none"})"));
+  EXPECT_EQ(refused["error"]["code"], "wrong_state") << refused.dump();
+  EXPECT_NE(refused["error"]["message"].get<std::string>().find("machine.stage"),
+            std::string::npos);
+  const json scan = c.Call(RunLine(3, R"("job": "config/jobs/scan_step_gauge.yaml", )"
+                                      R"("set": {"machine.camera": "none"})"));
+  EXPECT_NE(scan["error"]["message"].get<std::string>().find("machine.camera"), std::string::npos)
+      << scan.dump();
+  EXPECT_EQ(c.Call(R"({"id": 4, "cmd": "status"})")["state"], "armed");
   EXPECT_EQ(TheNextJobRuns(c), "done");
 }
 

@@ -3,7 +3,7 @@
 // GVCP/GVSP as the source made them, to the quantisation of the range; a lossy link and a sensor
 // that goes away are clear errors, never a wrong profile or a hang, and the sensor is opened
 // again when it comes back.
-#include "insitu/hw/aravis_profiler.h"
+#include "hw/aravis/profiler.h"
 
 #include <gtest/gtest.h>
 
@@ -13,7 +13,7 @@
 #include <mutex>
 #include <optional>
 
-#include "insitu/hw/aravis.h"
+#include "hw/aravis/camera.h"
 #include "insitu/sim/world.h"
 
 namespace insitu::hw::aravis {

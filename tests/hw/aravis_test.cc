@@ -2,7 +2,7 @@
 // address, its frames rendered by the simulator. Frames arrive over GVCP/GVSP identical to the
 // simulated camera's own; a lossy link and a camera that goes away are clear errors, never a
 // hang, and the camera is opened again when it comes back.
-#include "insitu/hw/aravis.h"
+#include "hw/aravis/camera.h"
 
 #include <gtest/gtest.h>
 

@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "hw/grbl/protocol.h"
-#include "insitu/hw/grbl.h"
+#include "hw/grbl/stage.h"
 #include "support/grbl_emulator.h"
 
 namespace insitu::hw::grbl {
@@ -413,7 +413,10 @@ TEST(GrblProtocol, ParsesStatusReports) {
 
   for (const char* bad : {"", "<>", "<Idle|MPos:1,2,3", "Idle|MPos:1,2,3>", "<Walk|MPos:1,2,3>",
                           "<Hold:x|MPos:1,2,3>", "<Idle|MPos:1,,3>", "<Idle|MPos:1,2,3a>",
-                          "<Idle|MPos>", "<Idle|FS:0,0>", "<Idle|WPos:>", "<|MPos:1,2,3>"}) {
+                          "<Idle|MPos>", "<Idle|FS:0,0>", "<Idle|WPos:>", "<|MPos:1,2,3>",
+                          // A corrupted number is no position: nan, inf, beyond a kilometre.
+                          "<Idle|MPos:0,0,nan>", "<Idle|MPos:0,0,inf>", "<Idle|MPos:0,0,-1e300>",
+                          "<Idle|MPos:0,0,0|WCO:0,0,nan>"}) {
     const auto parsed = ParseStatusReport(bad);
     EXPECT_FALSE(parsed.ok()) << bad;
     EXPECT_EQ(parsed.status().code(), StatusCode::kParseError) << bad;

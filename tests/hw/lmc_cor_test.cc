@@ -16,8 +16,8 @@
 #include <iterator>
 #include <random>
 
+#include "hw/lmc/sim_board.h"
 #include "insitu/fit/cor_physics.h"
-#include "insitu/hw/lmc_sim_board.h"
 #include "insitu/hw/cell.h"
 #include "insitu/optics/scan_head.h"
 #include "insitu/pattern/correction_table.h"

@@ -2,7 +2,7 @@
 // byte, single commands, packets, .cor files in both formats, the correction upload, and
 // marking through the board emulator on the simulated head compared with the same list run
 // on the head directly; abort stops the laser.
-#include "insitu/hw/lmc.h"
+#include "hw/lmc/lmc.h"
 
 #include <gtest/gtest.h>
 
@@ -14,9 +14,9 @@
 #include <random>
 #include <thread>
 
-#include "insitu/hw/lmc_cor.h"
-#include "insitu/hw/lmc_sim_board.h"
+#include "hw/lmc/sim_board.h"
 #include "insitu/hw/cell.h"
+#include "insitu/hw/lmc_cor.h"
 #include "insitu/hw/sim_backend.h"
 #include "insitu/sim/world.h"
 

@@ -128,6 +128,7 @@ TEST(ExitCodes, TheOperatorAtTheTerminalCanStopTheJob) {
       "run", Job("calibrate.yaml"), "--out", (dir / "out").string(), "--set",
       "machine.operator=person", "--set", "output.calibration=" + (dir / "cal.yaml").string()};
   EXPECT_EQ(Insitu(run, -1.0, "\nabort\n"), 130);  // one view placed, then aborted
+  EXPECT_EQ(Insitu(run, -1.0, "no\nstop\n"), 130);  // neither confirms: asked again, then EOF
   EXPECT_EQ(Insitu(run, -1.0, ""), 130);
   EXPECT_FALSE(fs::exists(dir / "cal.yaml"));
 }

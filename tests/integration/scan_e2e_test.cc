@@ -1,19 +1,19 @@
 // End to end on the simulated cell: galvo line scan of the step gauge -> frames -> stripe
 // centres -> method 1 triangulation -> cloud -> accuracy against the gauge. Binned 2x2 frames
 // and 1 mm line spacing keep it fast enough for the default suite.
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <memory>
-
-#include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
 #include "insitu/hw/sim_backend.h"
+#include "insitu/inspect/step_gauge.h"
 #include "insitu/job/job_file.h"
 #include "insitu/job/runner.h"
 #include "insitu/job/scan.h"
-#include "insitu/job/step_gauge.h"
 #include "integration/test_support.h"
 
 namespace insitu {
@@ -48,14 +48,14 @@ TEST(ScanEndToEnd, PerfectCalibrationLeavesOnlyTheLightPlaneModelError) {
   EXPECT_EQ(out->stats.lines, 20);
   EXPECT_GT(out->cloud.size(), 10000u);
 
-  job::StepGaugeSpec gauge;
-  auto eval = job::EvaluateStepGauge(out->cloud, gauge);
+  inspect::StepGaugeSpec gauge;
+  auto eval = inspect::EvaluateStepGauge(out->cloud, gauge);
   ASSERT_TRUE(eval.ok()) << eval.status().ToString();
   const sim::ScanOpticsGeometry& g = world.scan_head.optics;
   const double l = g.exit_pupil_height_mm;
   const double h = world.scan_head.y_mirror_height_mm;
   for (size_t i = 0; i < eval->steps.size(); ++i) {
-    const job::StepResult& s = eval->steps[i];
+    const inspect::StepResult& s = eval->steps[i];
     const double x_centre = -10.0 + 5.0 * i + 2.5;
     const double shift = g.mirror_separation_mm * std::tan(x_centre / g.focal_length_mm) * l /
                          g.focal_length_mm;

@@ -50,7 +50,9 @@ bool InsideRoots(const std::string& path, const ReadRoots& roots);
 // Every file `doc` names (a key NamesAFile gives, at any depth, a path or a list of them),
 // resolved against `folder`, lies within `roots`; a world document's `base:` resolves against
 // `folder` as well (pass the world file's). Errors: invalid_argument naming the key where it
-// is written (file and line), never the file's contents.
-Status CheckReads(const ConfigNode& doc, const std::string& folder, const ReadRoots& roots);
+// is written (file and line), never the file's contents. `skip_machine`: the doc's machine:
+// section is replaced by the daemon's cell (its files are the cell's, in roots.files).
+Status CheckReads(const ConfigNode& doc, const std::string& folder, const ReadRoots& roots,
+                  bool skip_machine = false);
 
 }  // namespace insitu::daemon

@@ -12,10 +12,9 @@
 #include <vector>
 
 #include "insitu/core/status.h"
-#include "insitu/hw/aravis.h"
-#include "insitu/hw/aravis_profiler.h"
-#include "insitu/hw/grbl.h"
-#include "insitu/hw/lmc.h"
+#include "insitu/hw/aravis_options.h"
+#include "insitu/hw/grbl_options.h"
+#include "insitu/hw/lmc_options.h"
 #include "insitu/hw/machine.h"
 #include "insitu/sim/world_options.h"
 
@@ -71,11 +70,15 @@ struct MachineConfig {
 
 // The config's field for a role's device (scanner, camera, ..., person).
 std::string& DeviceField(MachineConfig& config, Role role);
+const std::string& DeviceField(const MachineConfig& config, Role role);
 // The device a role resolves to: what the config names, else "sim" on a simulated cell and
 // "none" on a real one.
 std::string DeviceFor(const MachineConfig& config, Role role);
 // True when the role names real hardware (opened on a bus or a port of this computer).
 bool IsRealDevice(const MachineConfig& config, Role role);
+// True when the role's device comes from the simulator: its own, or served through a real
+// protocol (an LMC board emulator, a GigE camera or profiler served on a local address).
+bool IsSimulatedDevice(const MachineConfig& config, Role role);
 // True when any role names real hardware.
 bool IsRealCell(const MachineConfig& config);
 // True when some device comes from the simulator (so the job must name a world).

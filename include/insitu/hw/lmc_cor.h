@@ -21,13 +21,13 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <cstdint>
 #include <functional>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "insitu/core/status.h"
-#include "insitu/hw/lmc.h"
 
 namespace insitu::hw::lmc {
 
@@ -84,6 +84,11 @@ Result<CorFile> ReadCor(const std::string& path);
 // finite), device_error (cannot write). A CorFile as ReadCor returned it is written back byte
 // for byte.
 Status WriteCor(const std::string& path, const CorFile& cor);
+
+// A correction table as the board takes it: 65 x 65 (dx, dy) offsets in units, x outer.
+struct BoardCorrection {
+  std::vector<std::array<int32_t, 2>> offsets;  // 4225
+};
 
 // The table for the board as stored (rounded to whole units): the board takes the file in its
 // own convention, whatever reading insitu used to understand it.

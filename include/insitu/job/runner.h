@@ -49,6 +49,8 @@ std::vector<std::string> JobKinds();
 // writing anything: the errors RunJob would give before moving (unknown or bad keys, with
 // file, line and key; an unknown kind). Pattern, calibration and table files are read by
 // RunJob, before the machine moves.
+// Also refused: a role the job needs (its scan head, a Z stage, ...) that its cell names no
+// device for (failed_precondition, naming the role's key).
 Status CheckJob(const LoadedJob& job);
 
 Result<Report> RunJob(const LoadedJob& job, const RunOptions& options);

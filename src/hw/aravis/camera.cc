@@ -7,9 +7,9 @@
 #include <cstring>
 #include <string>
 
+#include "hw/aravis/camera.h"
 #include "hw/aravis/gige_common.h"
 #include "insitu/core/log.h"
-#include "insitu/hw/aravis.h"
 
 namespace insitu::hw::aravis {
 namespace {

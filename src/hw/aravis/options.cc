@@ -1,7 +1,6 @@
 // CameraOptions and ProfilerOptions without Aravis: job files are checked where Aravis is not
 // linked (fuzzing).
-#include "insitu/hw/aravis.h"
-#include "insitu/hw/aravis_profiler.h"
+#include "insitu/hw/aravis_options.h"
 
 namespace insitu::hw::aravis {
 namespace {

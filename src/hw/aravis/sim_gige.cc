@@ -6,9 +6,9 @@
 #include <cstring>
 #include <mutex>
 
+#include "hw/aravis/camera.h"
 #include "hw/aravis/gige_common.h"
 #include "insitu/core/log.h"
-#include "insitu/hw/aravis.h"
 #include "insitu/sim/world.h"
 
 namespace insitu::hw::aravis {

@@ -35,8 +35,8 @@
 #include <utility>
 
 #include "hw/aravis/gige_common.h"
+#include "hw/aravis/profiler.h"
 #include "insitu/core/log.h"
-#include "insitu/hw/aravis_profiler.h"
 
 namespace insitu::hw::aravis {
 namespace {

@@ -4,6 +4,7 @@
 #include "hw/grbl/protocol.h"
 
 #include <charconv>
+#include <cmath>
 #include <string>
 
 namespace insitu::hw::grbl {
@@ -25,6 +26,9 @@ std::optional<double> ParseDouble(std::string_view s) {
   double v = 0;
   const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
   if (ec != std::errc() || end != s.data() + s.size() || s.empty()) return std::nullopt;
+  // GRBL prints finite numbers of a few digits; nan, inf or a position beyond a kilometre is a
+  // corrupted line, never a place to move to or from.
+  if (!(std::abs(v) <= 1e6)) return std::nullopt;
   return v;
 }
 

@@ -36,32 +36,16 @@
 #include <utility>
 #include <vector>
 
+#include "hw/grbl/common.h"
 #include "hw/grbl/protocol.h"
+#include "hw/grbl/stage.h"
 #include "insitu/core/log.h"
-#include "insitu/hw/grbl.h"
 
 namespace insitu::hw::grbl {
 namespace {
 
 using Clock = std::chrono::steady_clock;
 using Deadline = Clock::time_point;
-
-constexpr std::string_view kAxes = "XYZABC";  // the order of the axes in a status report
-
-struct Baud {
-  int rate;
-  speed_t constant;
-};
-constexpr Baud kBauds[] = {{9600, B9600},     {19200, B19200},   {38400, B38400},
-                           {57600, B57600},   {115200, B115200}, {230400, B230400},
-                           {460800, B460800}, {921600, B921600}};
-
-std::optional<speed_t> BaudConstant(int rate) {
-  for (const Baud& b : kBauds) {
-    if (b.rate == rate) return b.constant;
-  }
-  return std::nullopt;
-}
 
 Deadline After(double s) {
   return Clock::now() +
@@ -72,13 +56,6 @@ Deadline After(double s) {
 int MsUntil(Deadline deadline) {
   const auto ms = std::chrono::ceil<std::chrono::milliseconds>(deadline - Clock::now()).count();
   return static_cast<int>(std::clamp<long long>(ms, 0, 60'000));
-}
-
-// Locale-independent fixed-point text: "-42.5000".
-std::string Fixed(double v, int digits) {
-  char b[64];
-  const auto r = std::to_chars(b, b + sizeof b, v, std::chars_format::fixed, digits);
-  return std::string(b, r.ptr);
 }
 
 std::string ErrnoText(const char* what) { return std::string(what) + ": " + std::strerror(errno); }
@@ -114,6 +91,9 @@ class SerialPort {
     ::cfmakeraw(&t);
     t.c_cflag &= ~(CSTOPB | PARENB | CRTSCTS | CSIZE);
     t.c_cflag |= CS8 | CLOCAL | CREAD;
+    // Closing the port keeps DTR up: an Arduino GRBL resets (and forgets an unhomed position)
+    // when DTR drops.
+    t.c_cflag &= ~HUPCL;
     t.c_iflag &= ~(IXON | IXOFF | IXANY);
     // MIN 1: a read with nothing to read says EAGAIN, so 0 means the line hung up (with MIN 0
     // and TIME 0 Linux returns 0 for "nothing yet" too).
@@ -541,7 +521,7 @@ class GrblStage : public Stage {
       INSITU_ASSIGN_OR_RETURN(at, Fail(c.QueryPosition(After(options_.timeout_s)), what));
     }
     INSITU_RETURN_IF_ERROR(RequireIdle(at.first, what));
-    if (std::abs(at.second - target) > options_.position_tolerance_mm) {
+    if (!(std::abs(at.second - target) <= options_.position_tolerance_mm)) {
       return DeviceError(c.name() + ": " + what + ": it stopped at machine " + options_.axis +
                          Fixed(at.second, 4) + ", " + Fixed(std::abs(at.second - target), 4) +
                          " mm from the target (tolerance " +
@@ -592,46 +572,6 @@ class GrblStage : public Stage {
 
 }  // namespace
 
-Status StageOptions::Validate() const {
-  if (port.empty()) return InvalidArgument("port must name the serial device, e.g. /dev/ttyUSB0");
-  if (!BaudConstant(baud)) {
-    return InvalidArgument(
-        "baud must be one of 9600, 19200, 38400, 57600, 115200, 230400, "
-        "460800, 921600 (got " +
-        std::to_string(baud) + ")");
-  }
-  if (axis == '\0' || kAxes.find(axis) == std::string_view::npos) {
-    return InvalidArgument("axis must be one of X, Y, Z, A, B, C");
-  }
-  if (!(std::isfinite(min_z_mm) && std::isfinite(max_z_mm) && min_z_mm < max_z_mm)) {
-    return InvalidArgument(
-        "min_z_mm must be < max_z_mm, both finite: the stage's travel in mm (got [" +
-        Fixed(min_z_mm, 3) + ", " + Fixed(max_z_mm, 3) + "])");
-  }
-  if (!std::isfinite(machine_zero_mm)) return InvalidArgument("machine_zero_mm must be finite");
-  if (direction != 1 && direction != -1) {
-    return InvalidArgument("direction must be +1 (the controller's + is up) or -1 (got " +
-                           std::to_string(direction) + ")");
-  }
-  if (!(feed_mm_per_min > 0 && feed_mm_per_min <= 100000)) {
-    return InvalidArgument("feed_mm_per_min must be in (0, 100000]");
-  }
-  if (!(timeout_s > 0 && timeout_s <= 3600))
-    return InvalidArgument("timeout_s must be in (0, 3600]");
-  if (!(homing_timeout_s > 0 && homing_timeout_s <= 3600)) {
-    return InvalidArgument("homing_timeout_s must be in (0, 3600]");
-  }
-  if (!(banner_wait_s >= 0 && banner_wait_s <= 60)) {
-    return InvalidArgument("banner_wait_s must be in [0, 60]");
-  }
-  if (!(status_poll_s >= 0.001 && status_poll_s <= 10)) {
-    return InvalidArgument("status_poll_s must be in [0.001, 10]");
-  }
-  if (!(position_tolerance_mm > 0 && position_tolerance_mm <= 10)) {
-    return InvalidArgument("position_tolerance_mm must be in (0, 10]");
-  }
-  return Status::Ok();
-}
 
 Result<std::unique_ptr<Stage>> OpenStage(const StageOptions& options) {
   INSITU_RETURN_IF_ERROR(options.Validate());

@@ -3,7 +3,7 @@
 #include <cstdio>
 #include <map>
 
-#include "insitu/hw/lmc.h"
+#include "hw/lmc/lmc.h"
 
 namespace insitu::hw::lmc {
 namespace {

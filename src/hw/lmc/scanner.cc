@@ -6,7 +6,7 @@
 #include <thread>
 #include <utility>
 
-#include "insitu/hw/lmc.h"
+#include "hw/lmc/lmc.h"
 
 namespace insitu::hw::lmc {
 namespace {

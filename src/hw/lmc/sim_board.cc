@@ -3,7 +3,7 @@
 #include <mutex>
 #include <thread>
 
-#include "insitu/hw/lmc_sim_board.h"
+#include "hw/lmc/sim_board.h"
 
 namespace insitu::hw::lmc {
 

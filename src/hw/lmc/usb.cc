@@ -6,8 +6,8 @@
 #include <cstdio>
 #include <string>
 
+#include "hw/lmc/lmc.h"
 #include "insitu/core/log.h"
-#include "insitu/hw/lmc.h"
 
 namespace insitu::hw::lmc {
 namespace {

@@ -1,7 +1,8 @@
 // GenICam 3D line profilers (SFNC Scan3dControl) over GigE Vision through Aravis 0.8, and any
 // hw::Profiler served as one (Aravis's in-process fake camera with a profiler's register map),
 // so the whole profiler path runs over real GVCP/GVSP packets on a loopback address.
-// aravis/arv.h stays in src/hw/aravis.
+// Private to src/hw (the backend's folder, machine.cc and its tests): aravis/arv.h stays in
+// src/hw/aravis; the options a job sets are in insitu/hw/aravis_options.h.
 //
 // What is read from the sensor (docs/hardware.md, "Line profilers"): one profile is one line of
 // the range image (ComponentSelector=Range, PixelFormat Coord3D_C16 or Coord3D_C32f, Height 1).
@@ -16,27 +17,10 @@
 #include <string>
 
 #include "insitu/core/status.h"
+#include "insitu/hw/aravis_options.h"
 #include "insitu/hw/profiler.h"
 
 namespace insitu::hw::aravis {
-
-struct ProfilerOptions {
-  // Which sensor: an IP address, a serial number, a device id ("Vendor-Model-Serial") or a
-  // user id (DeviceUserID). Empty: the only GigE Vision device found.
-  std::string device;
-  // "Coord3D_C16" (16-bit unsigned counts) or "Coord3D_C32f" (32-bit float).
-  std::string pixel_format = "Coord3D_C16";
-  // "software": each grab triggers the profile; "Line0".."Line3": a hardware trigger on that
-  // input (the grab waits for the pulse and the profile, up to the timeout).
-  std::string trigger = "software";
-  int packet_size = 8192;  // bytes; jumbo frames need the link's MTU (docs/hardware.md)
-  int buffers = 4;
-  double frame_timeout_ms = 1000.0;   // beyond the exposure
-  int socket_buffer_bytes = 4 << 20;  // capped by net.core.rmem_max for non-root users
-  bool reconnect = true;              // a sensor that went away is opened again on the next grab
-
-  Status Validate() const;
-};
 
 // Opens the sensor: the range component alone, the pixel format, one profile per frame, the
 // trigger, the encoder chunk (ChunkModeActive, ChunkSelector EncoderValue, ChunkEnable) and the

@@ -10,7 +10,7 @@
 #include "insitu/core/status.h"
 #include "insitu/geometry/cloud.h"
 
-namespace insitu::job {
+namespace insitu::inspect {
 
 struct StepGaugeSpec {
   std::vector<double> heights_mm{3.0, 5.0, 10.0, 15.0};
@@ -47,7 +47,7 @@ struct StepGaugeResult {
   double max_abs_binned_error_mm = 0.0;
   int length_lines = 0;          // scan lines that crossed a top over its whole length
   // Mean over those lines of the distance between the top's two ends, each where the stripe
-  // on the top falls to half its brightness (see job/line_ends.h).
+  // on the top falls to half its brightness (see inspect/line_ends.h).
   double length_mm = 0.0;
   double length_std_mm = 0.0;
 };
@@ -55,4 +55,4 @@ struct StepGaugeResult {
 // Errors: invalid_argument if no step received any point (wrong placement or empty cloud).
 Result<StepGaugeResult> EvaluateStepGauge(const geometry::Cloud& cloud, const StepGaugeSpec& spec);
 
-}  // namespace insitu::job
+}  // namespace insitu::inspect

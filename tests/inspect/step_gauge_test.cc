@@ -1,10 +1,10 @@
-#include "insitu/job/step_gauge.h"
+#include "insitu/inspect/step_gauge.h"
 
 #include <cmath>
 
 #include <gtest/gtest.h>
 
-namespace insitu::job {
+namespace insitu::inspect {
 namespace {
 
 // A synthetic cloud: lines every 0.5 mm in x; points at the centres of 0.1 mm columns along
@@ -47,4 +47,4 @@ TEST(StepGauge, WrongPlacementIsAnError) {
 }
 
 }  // namespace
-}  // namespace insitu::job
+}  // namespace insitu::inspect

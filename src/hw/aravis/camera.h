@@ -1,13 +1,15 @@
 // GigE Vision cameras through Aravis 0.8, and a GigE Vision camera served from the simulator
 // (Aravis's in-process fake camera, every frame rendered by sim::SimWorld for the moment it is
 // triggered), so the whole camera path runs over real GVCP/GVSP packets on a loopback address.
-// aravis/arv.h stays in src/hw/aravis.
+// Private to src/hw (the backend's folder, machine.cc and its tests): aravis/arv.h stays in
+// src/hw/aravis; the options a job sets are in insitu/hw/aravis_options.h.
 #pragma once
 
 #include <memory>
 #include <string>
 
 #include "insitu/core/status.h"
+#include "insitu/hw/aravis_options.h"
 #include "insitu/hw/camera.h"
 
 namespace insitu::sim {
@@ -15,27 +17,6 @@ class SimWorld;
 }  // namespace insitu::sim
 
 namespace insitu::hw::aravis {
-
-struct CameraOptions {
-  // Which camera: an IP address, a serial number, a device id ("Vendor-Model-Serial") or a
-  // user id (DeviceUserID). Empty: the only GigE camera found.
-  std::string device;
-  int bit_depth = 8;  // 8 (Mono8), 12 (Mono12, in 16-bit samples) or 16 (Mono16)
-  // "software": each grab triggers the frame; "Line0".."Line3": a hardware trigger on that
-  // input (the grab waits for the pulse and the frame, up to the timeout).
-  std::string trigger = "software";
-  // The image read out, unbinned, from the sensor's corner (0: the whole sensor). It is what
-  // info() reports as the sensor and what the calibration file must describe.
-  int roi_width = 0;
-  int roi_height = 0;
-  int packet_size = 8192;  // bytes; jumbo frames need the link's MTU (docs/hardware.md)
-  int buffers = 4;
-  double frame_timeout_ms = 1000.0;   // beyond the exposure
-  int socket_buffer_bytes = 4 << 20;  // capped by net.core.rmem_max for non-root users
-  bool reconnect = true;              // a camera that went away is opened again on the next grab
-
-  Status Validate() const;
-};
 
 // Opens the camera, sets software trigger, Mono8/Mono16 and the packet size, and starts its
 // stream. Errors: not_found (no such camera: lists the cameras seen), invalid_argument (several

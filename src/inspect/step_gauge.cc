@@ -1,4 +1,4 @@
-#include "insitu/job/step_gauge.h"
+#include "insitu/inspect/step_gauge.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,9 +6,9 @@
 #include <map>
 #include <vector>
 
-#include "job/line_ends.h"
+#include "inspect/line_ends.h"
 
-namespace insitu::job {
+namespace insitu::inspect {
 
 Status StepGaugeSpec::Validate() const {
   if (heights_mm.empty()) return InvalidArgument("heights_mm must list at least one step");
@@ -131,4 +131,4 @@ Result<StepGaugeResult> EvaluateStepGauge(const geometry::Cloud& cloud, const St
   return r;
 }
 
-}  // namespace insitu::job
+}  // namespace insitu::inspect

@@ -1,6 +1,7 @@
 // BJJCZ "LMC" (EzCad2-class) galvo boards over USB: the list encoder, the board protocol and a
 // Scanner on top of them, behind a byte transport so the same code drives a real board
-// (libusb) or the board emulator (lmc_sim_board.h).
+// (libusb) or the board emulator (sim_board.h). Private to src/hw (the backend's folder,
+// machine.cc and its tests); the options a job sets are in insitu/hw/lmc_options.h.
 //
 // Protocol facts (docs/hardware.md, "LMC"): single commands are 12 bytes, six little-endian
 // uint16 (opcode, p1..p5), answered by 8 bytes whose word 3 is the status (BUSY 0x04,
@@ -23,6 +24,8 @@
 #include <vector>
 
 #include "insitu/core/status.h"
+#include "insitu/hw/lmc_cor.h"
+#include "insitu/hw/lmc_options.h"
 #include "insitu/hw/scanner.h"
 
 namespace insitu::hw::lmc {
@@ -85,43 +88,10 @@ class Transport {
   virtual std::string Describe() const = 0;  // "usb 1-4 9588:9899", "simulated board"
 };
 
-// Which USB board to open: by VID/PID, and by bus and address to pick one of several.
-struct UsbSelector {
-  uint16_t vid = 0x9588;
-  uint16_t pid = 0x9899;
-  int bus = -1;      // -1: any
-  int address = -1;  // -1: any
-  int timeout_ms = 100;  // 1..10000 (libusb's 0 would wait forever)
-  int retries = 3;       // 0..10 per transfer, on timeout
-
-  Status Validate() const;
-};
-
 // Opens and claims interface 0 of the board. Errors: not_found (no such board: lists what USB
 // devices with that VID:PID exist), device_error (permission: names the udev rule in
 // docs/hardware.md; busy: another program holds it).
 Result<std::unique_ptr<Transport>> OpenUsb(const UsbSelector& selector);
-
-enum class Focus { kNone, kDaZWord };
-
-struct BoardOptions {
-  double lens_mm = 110.0;  // field size across the 65536 units
-  bool swap_xy = false;    // axis order and sign differ between boards and heads
-  bool flip_x = false;
-  bool flip_y = false;
-  Focus focus = Focus::kNone;
-  double z_units_per_mm = 0.0;       // focus: da_z_word: Z DA word units per mm of focus shift
-  double focus_range_mm = 0.0;       // +- focus travel of the shifter
-  uint16_t list_ports = 0x0001;      // port word at the start of a marking list
-  uint16_t pointer_port = 0x0100;    // the red pointer's output bit
-  double open_mo_delay_us = 8000.0;  // the fibre laser's master oscillator settles
-  double polygon_delay_us = 100.0;  // sent in 10 us units
-  int poll_ms = 2;  // status poll period while a list runs
-  double list_timeout_s = 3600.0;
-  int packets_before_start = 3;  // then the rest are streamed as the board reports READY
-
-  Status Validate() const;
-};
 
 // Board units of a galvo-frame point (mm): floor(0x8000 + x * 65536 / lens), with the
 // configured swap and flips. Errors: out_of_range outside the lens field.
@@ -144,12 +114,8 @@ Command DecodeCommand(const uint8_t* bytes);
 // One line per command: "listJumpTo           ba2e 45d1 0000 5248 0000".
 std::string FormatCommands(const std::vector<Command>& commands);
 
-// A correction table as the board takes it: 65 x 65 (dx, dy) offsets in units, x outer.
-struct BoardCorrection {
-  std::vector<std::array<int32_t, 2>> offsets;  // 4225
-};
-// WriteCorTable(1) and 4225 WriteCorLine commands (sign-magnitude words). Only WriteCorTable
-// is answered.
+// A correction table (BoardCorrection, insitu/hw/lmc_cor.h) as WriteCorTable(1) and 4225
+// WriteCorLine commands (sign-magnitude words). Only WriteCorTable is answered.
 Result<std::vector<std::vector<uint8_t>>> CorrectionUpload(const BoardCorrection& table);
 // Sends them, reading each reply. Errors: out_of_range (an offset), device_error (transport).
 Status UploadCorrection(Transport& transport, const BoardCorrection& table);

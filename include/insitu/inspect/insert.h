@@ -7,7 +7,7 @@
 // - plate: median z of the points near base_z_mm; top: points higher than half the nominal
 //   thickness above it;
 // - per scan line, the top's runs (a gap wider than gap_mm splits a run: the hole); every run
-//   end where the stripe falls to half its brightness (job/line_ends.h) is an edge point: the
+//   end where the stripe falls to half its brightness (inspect/line_ends.h) is an edge point: the
 //   first and last of a line lie on the outline, the inner ones on the hole;
 // - the three edges: lines found by consensus among the outline points (within inlier_mm),
 //   refitted by least squares without the points within corner_exclusion_mm of the corners
@@ -21,7 +21,6 @@
 #pragma once
 
 #include <array>
-#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -29,7 +28,7 @@
 #include "insitu/core/status.h"
 #include "insitu/geometry/cloud.h"
 
-namespace insitu::job {
+namespace insitu::inspect {
 
 struct InsertSpec {
   // Nominal dimensions (the seed's vernier values, Table 1): edges as L (tip radius
@@ -69,14 +68,4 @@ struct InsertResult {
 // or the hole cannot be fitted (the message says which and with how many points).
 Result<InsertResult> EvaluateInsert(const geometry::Cloud& cloud, const InsertSpec& spec);
 
-}  // namespace insitu::job
-
-namespace insitu::job {
-
-// Top view of the insert for the report (insert.png): the scanned top shaded by height, the
-// outline and hole edge points, the fitted edges and circle, and the measured dimensions.
-// Errors: device_error if the file cannot be written.
-Status SaveInsertPicture(const geometry::Cloud& cloud, const InsertResult& result,
-                         const InsertSpec& spec, const std::string& path);
-
-}  // namespace insitu::job
+}  // namespace insitu::inspect

@@ -10,7 +10,7 @@
 
 #include <vector>
 
-namespace insitu::job {
+namespace insitu::inspect {
 
 struct LinePoint {
   double x = 0.0;  // mm, galvo frame; the line runs along y
@@ -34,4 +34,4 @@ double MedianSpacing(const std::vector<LinePoint>& points, int first, int last);
 double HalfBrightnessEnd(const std::vector<LinePoint>& points, int end, int dir, double spacing,
                          int limit = -1);
 
-}  // namespace insitu::job
+}  // namespace insitu::inspect

@@ -3,12 +3,12 @@
 // and executes lists on the simulated scan head (sim::SimWorld), so a marking job runs end to
 // end through the real encoder and protocol. The board's emulated memory and the head's
 // geometry (lens, axes, focus shifter) come from `options`, as the installed board would have
-// them.
+// them. Private to src/hw (the backend's folder, machine.cc and its tests).
 #pragma once
 
 #include <memory>
 
-#include "insitu/hw/lmc.h"
+#include "hw/lmc/lmc.h"
 #include "insitu/sim/world.h"
 
 namespace insitu::hw::lmc {

@@ -1,11 +1,11 @@
-#include "job/line_ends.h"
+#include "inspect/line_ends.h"
 
 #include <algorithm>
 #include <cmath>
 
 #include "insitu/core/robust.h"
 
-namespace insitu::job {
+namespace insitu::inspect {
 
 void SortAlongLine(std::vector<LinePoint>* points) {
   std::sort(points->begin(), points->end(),
@@ -55,4 +55,4 @@ double HalfBrightnessEnd(const std::vector<LinePoint>& points, int end, int dir,
   return points[k].y - dir * 0.5 * spacing;
 }
 
-}  // namespace insitu::job
+}  // namespace insitu::inspect
