@@ -34,14 +34,14 @@ using insitu::job::FrameProcessor;
 using insitu::job::ScanOptions;
 using insitu::job::ScanOutput;
 
-constexpr int kLines = 6;  // frames per case, across the part
+constexpr int kLines = 15;  // frames per case, across the scan: the part and the plate beside it
 
 // The shipped step-gauge scan's settings (config/jobs/scan_step_gauge.yaml), method 2.
 ScanOptions Options() {
   ScanOptions o;
-  o.x_start_mm = -7.5;
-  o.x_end_mm = 7.5;
-  o.line_spacing_mm = 15.0 / (kLines - 1);
+  o.x_start_mm = -14.0;  // the shipped scan's lines: 4 mm of plate on each side of the gauge
+  o.x_end_mm = 14.0;
+  o.line_spacing_mm = 28.0 / (kLines - 1);
   o.y_start_mm = -50.0;
   o.y_end_mm = 50.0;
   o.method = 2;

@@ -21,11 +21,13 @@ Status CheckFrame(const Frame& frame, const CameraInfo& info) {
   }
   const int max_w = info.sensor_width_px / frame.binning;
   const int max_h = info.sensor_height_px / frame.binning;
-  if (frame.width <= 0 || frame.height <= 0 || (info.sensor_width_px > 0 && frame.width > max_w) ||
-      (info.sensor_height_px > 0 && frame.height > max_h)) {
+  if (frame.offset_x < 0 || frame.offset_y < 0 || frame.width <= 0 || frame.height <= 0 ||
+      (info.sensor_width_px > 0 && frame.offset_x + frame.width > max_w) ||
+      (info.sensor_height_px > 0 && frame.offset_y + frame.height > max_h)) {
     return Status(StatusCode::kDeviceError,
                   which + std::to_string(frame.width) + " x " + std::to_string(frame.height) +
-                      " px does not fit the " + std::to_string(max_w) + " x " +
+                      " px at (" + std::to_string(frame.offset_x) + ", " +
+                      std::to_string(frame.offset_y) + ") does not fit the " + std::to_string(max_w) + " x " +
                       std::to_string(max_h) + " px sensor at binning " +
                       std::to_string(frame.binning));
   }

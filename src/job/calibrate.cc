@@ -309,7 +309,8 @@ Result<calib::HeightLookup> CalibrateHeights(CalibrateRun& run) {
   std::vector<calib::HeightObservation> observations;
   vision::StripeOptions stripe_options;
   stripe_options.direction = vision::StripeDirection::kColumns;
-  vision::StripeExtractor extractor(stripe_options);
+  // Gray levels on the 8-bit scale, as the scan's: the same light on a 12-bit camera.
+  vision::StripeExtractor extractor(stripe_options.ForBitDepth(machine.camera->info().bit_depth));
   vision::StripeResult stripe;
   PhaseProgress hp(run.options, "height calibration", "frames",
                    static_cast<double>(zs.size() * xs.size()));

@@ -156,6 +156,11 @@ Status SaveScan(const ScanOutput& scanned, const ScanJobSpec& spec, const std::s
   }
   m["machine_time_s"] = st.machine_time_s;
   m["extract_time_ms_per_frame"] = st.lines ? st.extract_time_ms / st.lines : 0.0;
+  // The camera as the scan ran it: its band of rows and the frames per second of machine time.
+  m["camera_rows"] = st.region_rows;
+  m["camera_frame_rate_hz"] = st.machine_time_s > 0 ? st.lines / st.machine_time_s : 0.0;
+  m["max_queued_frames"] = st.max_queued_frames;
+  if (!st.region_note.empty()) report->warnings.push_back("camera region: " + st.region_note);
   if (st.saturated > 0) {
     report->warnings.push_back(std::to_string(st.saturated) +
                                " stripe columns saturated: lower camera.exposure_ms or gain");

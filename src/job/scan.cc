@@ -1,7 +1,15 @@
 #include "insitu/job/scan.h"
 
+#include <algorithm>
 #include <chrono>
+#include <limits>
 #include <cmath>
+#include <condition_variable>
+#include <deque>
+#include <mutex>
+#include <optional>
+#include <thread>
+#include <utility>
 
 #include "insitu/geometry/triangulation.h"
 
@@ -37,6 +45,13 @@ Status ScanOptions::Validate() const {
   }
   if (binning != 1 && binning != 2 && binning != 4) {
     return InvalidArgument("binning must be 1, 2 or 4, got " + std::to_string(binning));
+  }
+  if (!(std::isfinite(height_range_mm[0]) && std::isfinite(height_range_mm[1]) &&
+        height_range_mm[1] > height_range_mm[0])) {
+    return InvalidArgument("height_range_mm must be [low, high] with high > low");
+  }
+  if (queue_frames < 1 || queue_frames > 1000) {
+    return InvalidArgument("queue_frames must be in 1..1000, got " + std::to_string(queue_frames));
   }
   return Status::Ok();
 }
@@ -134,7 +149,9 @@ Status FrameProcessor::Process(const Frame& frame, int i, ScanOutput* out) {
       case vision::StripeStatus::kTwoPeaks: ++out->stats.two_peaks; continue;
       case vision::StripeStatus::kTooWide: ++out->stats.too_wide; continue;
     }
-    pixels.emplace_back(stripe.u(static_cast<int>(k)), stripe.v(static_cast<int>(k)));
+    // On the (binned) sensor: a region's frame starts at its offset.
+    pixels.emplace_back(stripe.u(static_cast<int>(k)) + frame.offset_x,
+                        stripe.v(static_cast<int>(k)) + frame.offset_y);
     index.push_back(static_cast<int>(k));
   }
   // Seed 000 eq. (1)-(4): pixel -> normalised ray -> light plane -> galvo frame.
@@ -180,6 +197,83 @@ Status FrameProcessor::Process(const Frame& frame, int i, ScanOutput* out) {
   return Status::Ok();
 }
 
+namespace {
+
+// Frames taken, waiting for the processing thread: bounded, never dropping one.
+class FrameQueue {
+ public:
+  explicit FrameQueue(int capacity) : capacity_(capacity) {}
+  // False when full (the caller stops the scan: a line is never dropped).
+  bool Push(int line, Frame frame) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (static_cast<int>(frames_.size()) >= capacity_) return false;
+    frames_.emplace_back(line, std::move(frame));
+    max_size_ = std::max(max_size_, static_cast<int>(frames_.size()));
+    wake_.notify_all();
+    return true;
+  }
+  // The next frame; nothing once closed and empty.
+  std::optional<std::pair<int, Frame>> Pop() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    wake_.wait(lock, [this] { return !frames_.empty() || closed_; });
+    if (frames_.empty()) return std::nullopt;
+    auto next = std::move(frames_.front());
+    frames_.pop_front();
+    return next;
+  }
+  void Close() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    closed_ = true;
+    wake_.notify_all();
+  }
+  int max_size() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return max_size_;
+  }
+
+ private:
+  const int capacity_;
+  mutable std::mutex mutex_;
+  std::condition_variable wake_;
+  std::deque<std::pair<int, Frame>> frames_;
+  bool closed_ = false;
+  int max_size_ = 0;
+};
+
+// The band of full-sensor rows where the stripe of any line can lie for a surface within the
+// height range: the lines' points at the range's heights projected through the calibration.
+// The margin: the widest stripe the extraction accepts, the median's and the background's
+// reach (3 rows beyond the run), and the pointer's landing off the galvo point on a real head
+// (a few 0.1 mm, ~4 px), in full-sensor pixels.
+std::pair<int, int> StripeBand(const ScanOptions& o, const vision::StripeOptions& stripe,
+                               const calib::CalibrationSet& cal) {
+  const calib::CameraIntrinsics& cam = cal.camera;
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  const int lines = o.line_count();
+  for (int i = 0; i < lines; ++i) {
+    for (int k = 0; k <= 20; ++k) {
+      const double y = o.y_start_mm + (o.y_end_mm - o.y_start_mm) * k / 20.0;
+      for (int j = 0; j <= 4; ++j) {
+        const double z = o.height_range_mm[0] + (o.height_range_mm[1] - o.height_range_mm[0]) * j / 4.0;
+        const Eigen::Vector3d p = cal.galvo.camera_from_galvo * Eigen::Vector3d(o.line_x(i), y, z);
+        if (!(p.z() > 0)) continue;
+        const Eigen::Vector2d px = cam.Project(p);
+        if (!(px.x() >= 0 && px.x() < cam.width_px)) continue;
+        lo = std::min(lo, px.y());
+        hi = std::max(hi, px.y());
+      }
+    }
+  }
+  if (!(hi >= lo)) return {0, 0};  // nothing in view: the whole sensor
+  const double margin = (stripe.max_width_px + 2.0 * stripe.median_kernel + 3.0) * o.binning + 8.0;
+  const int first = std::clamp(static_cast<int>(std::floor(lo - margin)), 0, cam.height_px);
+  const int last = std::clamp(static_cast<int>(std::ceil(hi + margin)), 0, cam.height_px);
+  if (last - first >= cam.height_px) return {0, 0};
+  return {first, last - first};
+}
+
+}  // namespace
+
 Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
                            const vision::StripeOptions& stripe_options,
                            const calib::CalibrationSet& calibration,
@@ -194,29 +288,100 @@ Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
   INSITU_RETURN_IF_ERROR(machine.camera->SetExposure(options.exposure_ms * 1e3));
   INSITU_RETURN_IF_ERROR(machine.camera->SetGain(options.gain_db));
   INSITU_RETURN_IF_ERROR(machine.camera->SetBinning(options.binning));
+  ScanOutput out;
+  struct RegionGuard {  // the camera reads its whole sensor again after the scan
+    hw::Camera* camera;
+    bool set = false;
+    ~RegionGuard() {
+      if (set) (void)camera->SetRegion(0, 0);
+    }
+  } region_guard{machine.camera.get()};
+  out.stats.region_rows = info.sensor_height_px;
+  if (options.region) {
+    const auto [first, rows] = StripeBand(options, stripe_options, calibration);
+    const Status set = machine.camera->SetRegion(first, rows);
+    if (set.ok()) {
+      region_guard.set = rows > 0;
+      out.stats.region_first_row = first;
+      if (rows > 0) out.stats.region_rows = rows;
+    } else if (set.code() == StatusCode::kFailedPrecondition) {
+      out.stats.region_note = set.message() + ": it reads its whole sensor";
+    } else {
+      return set.Prefixed("camera region");
+    }
+  }
 
   struct PointerGuard {  // the pointer never keeps running after the scan, whatever happens
     hw::Scanner* s;
     ~PointerGuard() { (void)s->StopPointer(); }
   } guard{machine.scanner.get()};
 
-  ScanOutput out;
   const int lines = options.line_count();
+  // Streaming: one thread processes the frames in line order while this one takes the next.
+  FrameQueue queue(options.queue_frames);
+  std::atomic<int> processed{0};
+  std::atomic<bool> failed{false};
+  Status processing;  // the processing thread's first error (read after it has ended)
+  std::thread worker;
+  if (options.streaming) {
+    worker = std::thread([&] {
+      while (auto next = queue.Pop()) {
+        if (!processing.ok()) continue;  // drain: the scan is stopping
+        processing = processor->Process(next->second, next->first, &out);
+        if (!processing.ok()) failed.store(true);
+        processed.fetch_add(1);
+      }
+    });
+  }
+  // Ends the processing thread on every way out; its error, if any, first.
+  const auto join = [&]() -> Status {
+    if (!worker.joinable()) return Status::Ok();
+    queue.Close();
+    worker.join();
+    return processing;
+  };
+  const auto stop = [&](Status why) {
+    const Status joined = join();
+    return joined.ok() ? why : joined;
+  };
+
   const double t_start = machine.clock->Now();
   for (int i = 0; i < lines; ++i) {
-    if (cancel && cancel->load()) return Status(StatusCode::kCancelled, "scan cancelled");
+    if (cancel && cancel->load()) return stop(Status(StatusCode::kCancelled, "scan cancelled"));
+    if (failed.load()) return stop(Status::Ok());  // the processing thread's error
     const double x = options.line_x(i);
     const Eigen::Vector3d from(x, options.y_start_mm, options.focus_z_mm);
     const Eigen::Vector3d to(x, options.y_end_mm, options.focus_z_mm);
-    INSITU_RETURN_IF_ERROR(machine.scanner->StartPointerLine(from, to, options.speed_mm_per_s)
-                               .Prefixed("line " + std::to_string(i)));
+    const Status on = machine.scanner->StartPointerLine(from, to, options.speed_mm_per_s);
+    if (!on.ok()) return stop(on.Prefixed("line " + std::to_string(i)));
     machine.clock->SleepFor(options.settle_ms * 1e-3);
     auto frame = machine.camera->Grab();
-    if (!frame.ok()) return frame.status().Prefixed("line " + std::to_string(i) + ": camera");
-    INSITU_RETURN_IF_ERROR(processor->Process(*frame, i, &out));
-    if (progress) progress(i + 1, lines);
+    if (!frame.ok()) {
+      return stop(frame.status().Prefixed("line " + std::to_string(i) + ": camera"));
+    }
+    if (options.streaming) {
+      if (!queue.Push(i, std::move(*frame))) {
+        return stop(DeviceError(
+            "line " + std::to_string(i) + ": the processing fell " +
+            std::to_string(options.queue_frames) +
+            " frames behind the camera (scan.queue_frames); no line was dropped, the scan "
+            "stopped: lower the camera's frame rate or raise queue_frames"));
+      }
+    } else {
+      const auto t0 = std::chrono::steady_clock::now();
+      INSITU_RETURN_IF_ERROR(processor->Process(*frame, i, &out));
+      // The next line waits for this one's processing: on a real cell that time passes anyway;
+      // a simulated machine's clock is told (MachineClock::Waited).
+      machine.clock->Waited(
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+      processed.store(i + 1);
+    }
+    if (progress) progress(processed.load(), lines);
   }
   out.stats.machine_time_s = machine.clock->Now() - t_start;
+  INSITU_RETURN_IF_ERROR(join());
+  out.stats.max_queued_frames = queue.max_size();
+  if (progress) progress(lines, lines);
   return out;
 }
 

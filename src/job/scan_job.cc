@@ -17,6 +17,10 @@ void ReadScanSection(ConfigReader& r, ScanOptions* s) {
   r.Read("focus_z_mm", &s->focus_z_mm);
   r.Read("speed_mm_per_s", &s->speed_mm_per_s);
   r.Read("settle_ms", &s->settle_ms);
+  r.Read("streaming", &s->streaming);
+  r.Read("queue_frames", &s->queue_frames);
+  r.Read("region", &s->region);
+  r.ReadArray("height_range_mm", s->height_range_mm.data(), 2);
 }
 
 }  // namespace

@@ -506,6 +506,19 @@ Status SimWorld::SetBinning(int binning) {
   return Status::Ok();
 }
 
+Status SimWorld::SetRegion(int first_row, int rows) {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  const int h = options_.camera.height_px;
+  if (rows < 0 || first_row < 0 || (rows > 0 && first_row + rows > h)) {
+    return OutOfRange("region: rows " + std::to_string(first_row) + ".." +
+                      std::to_string(first_row + rows) + " outside the sensor's 0.." +
+                      std::to_string(h));
+  }
+  region_first_row_ = rows == 0 ? 0 : first_row;
+  region_rows_ = rows;
+  return Status::Ok();
+}
+
 int SimWorld::binning() const { return binning_; }
 double SimWorld::exposure_us() const { return exposure_us_; }
 
@@ -709,7 +722,24 @@ Result<Frame> SimWorld::Grab() {
       }
     }
   });
-  now_s_ = t1;
+  // The region of interest: the frame's band of rows (the sensor renders as a whole, the
+  // camera reads out and sends only the band), in binned rows.
+  if (region_rows_ > 0) {
+    const int first = region_first_row_ / binning_;
+    const int last = std::min(h, (region_first_row_ + region_rows_ + binning_ - 1) / binning_);
+    const size_t stride = frame.stride_bytes();
+    frame.bytes.erase(frame.bytes.begin() + static_cast<ptrdiff_t>(stride * last),
+                      frame.bytes.end());
+    frame.bytes.erase(frame.bytes.begin(),
+                      frame.bytes.begin() + static_cast<ptrdiff_t>(stride * first));
+    frame.offset_y = first;
+    frame.height = last - first;
+  }
+  // The frame then crosses the camera's link: its bytes at the link's rate.
+  const double link_s = cam_opts.link_mb_per_s > 0
+                            ? static_cast<double>(frame.bytes.size()) / (cam_opts.link_mb_per_s * 1e6)
+                            : 0.0;
+  now_s_ = t1 + link_s;
   PaceTo(now_s_);
   return frame;
 }

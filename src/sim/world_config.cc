@@ -124,6 +124,7 @@ void ReadWorld(ConfigReader& r, WorldOptions* w) {
   c.Read("bit_depth", &co.bit_depth);
   c.Read("exposure_ms", &co.exposure_ms);
   c.Read("noise", &co.noise);
+  c.Read("link_mb_per_s", &co.link_mb_per_s);
   if (c.ok()) c.FailFromValidate(co.Validate());
 
   ConfigReader& l = r.Section("light");

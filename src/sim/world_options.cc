@@ -89,6 +89,9 @@ Status CameraOptions::Validate() const {
     return InvalidValue("dark_current_e_per_s", ">= 0", dark_current_e_per_s);
   if (!(gain_db >= 0 && gain_db <= 24)) return InvalidValue("gain_db", "in [0, 24]", gain_db);
   if (bit_depth != 8 && bit_depth != 12) return InvalidValue("bit_depth", "8 or 12", bit_depth);
+  if (!(link_mb_per_s >= 0.0 && link_mb_per_s <= 1e5)) {
+    return InvalidValue("link_mb_per_s", "in [0, 1e5] (0: no link time)", link_mb_per_s);
+  }
   if (!(exposure_ms > 0 && exposure_ms <= 10000)) {
     return InvalidValue("exposure_ms", "in (0, 10000]", exposure_ms);
   }

@@ -60,6 +60,27 @@ TEST(Aravis, FramesOverGigEAreTheSimulatorsOwn) {
     EXPECT_TRUE(frame->bytes == expected->bytes) << "frame " << k << " differs";
   }
   EXPECT_EQ((*served)->frames_rendered(), 3);
+  // A region of interest over GigE: the band's rows of the same frame, where they lie, and the
+  // simulated link's time for the band only.
+  ASSERT_TRUE((*camera)->SetRegion(160, 96).ok());
+  ASSERT_TRUE(reference.SetRegion(160, 96).ok());
+  const double t0 = served_world->now_s();
+  ASSERT_TRUE(served_world->StartPointerLine({0, -30, 0}, {0, 30, 0}, 5000.0).ok());
+  ASSERT_TRUE(reference.StartPointerLine({0, -30, 0}, {0, 30, 0}, 5000.0).ok());
+  auto band = (*camera)->Grab();
+  ASSERT_TRUE(band.ok()) << band.status().ToString();
+  auto expected = reference.Grab();
+  ASSERT_TRUE(expected.ok());
+  EXPECT_EQ(band->offset_y, 160);
+  EXPECT_EQ(band->height, 96);
+  EXPECT_TRUE(band->bytes == expected->bytes);
+  EXPECT_NEAR(served_world->now_s() - t0, 0.02 + 640.0 * 96.0 / 118e6, 1e-9);
+  EXPECT_EQ((*camera)->SetRegion(400, 200).code(), StatusCode::kOutOfRange);
+  ASSERT_TRUE((*camera)->SetRegion(0, 0).ok());
+  ASSERT_TRUE(served_world->StartPointerLine({0, -30, 0}, {0, 30, 0}, 5000.0).ok());
+  auto whole = (*camera)->Grab();
+  ASSERT_TRUE(whole.ok());
+  EXPECT_EQ(whole->height, 480);
 }
 
 TEST(Aravis, ALossyLinkAndALostCameraAreErrorsAndTheCameraComesBack) {

@@ -71,6 +71,79 @@ TEST(ScanEndToEnd, PerfectCalibrationLeavesOnlyTheLightPlaneModelError) {
   EXPECT_NEAR(eval->length_mm, 80.0, 0.3);
 }
 
+// Streaming (processing on a second thread while the next line is taken) measures exactly what
+// the sequential scan measures: the same frames, the same points in the same order. The
+// sequential scan's machine waits for each line's processing (MachineClock::Waited); the
+// streaming one does not, so its machine time is shorter by that time.
+TEST(ScanEndToEnd, StreamingMeasuresWhatTheSequentialScanDoes) {
+  sim::WorldOptions world;
+  const calib::CalibrationSet cal = testing::PerfectCalibration(world);
+  job::ScanOptions o = FastScan();
+  job::ScanOutput runs[2];
+  for (int k = 0; k < 2; ++k) {
+    hw::Machine machine = hw::MakeSimMachine(std::make_shared<sim::SimWorld>(world));
+    o.streaming = k == 1;
+    int last_done = -1;
+    auto out = job::RunScan(machine, o, vision::StripeOptions{}, cal,
+                            [&](int done, int total) {
+                              EXPECT_GE(done, last_done);
+                              EXPECT_EQ(total, 20);
+                              last_done = done;
+                            });
+    ASSERT_TRUE(out.ok()) << out.status().ToString();
+    EXPECT_EQ(last_done, 20);
+    runs[k] = std::move(*out);
+  }
+  ASSERT_EQ(runs[0].cloud.size(), runs[1].cloud.size());
+  for (size_t i = 0; i < runs[0].cloud.size(); i += 97) {
+    EXPECT_EQ(runs[0].cloud[i].point_in_galvo, runs[1].cloud[i].point_in_galvo) << i;
+    EXPECT_EQ(runs[0].cloud[i].line, runs[1].cloud[i].line) << i;
+  }
+  // The processing the sequential machine waited for (wall time: > 0 however fast the CPU).
+  EXPECT_GT(runs[0].stats.machine_time_s, runs[1].stats.machine_time_s);
+  std::printf("machine time: sequential %.3f s, streaming %.3f s; most frames queued %d\n",
+              runs[0].stats.machine_time_s, runs[1].stats.machine_time_s,
+              runs[1].stats.max_queued_frames);
+}
+
+// A camera that delivers faster than the computer processes fills the queue: the scan stops
+// with that reason, never dropping a line. The camera here replays one rendered frame at once.
+class ReplayCamera : public hw::Camera {
+ public:
+  ReplayCamera(Frame frame, hw::CameraInfo info) : frame_(std::move(frame)), info_(info) {}
+  hw::CameraInfo info() const override { return info_; }
+  Status SetExposure(double) override { return Status::Ok(); }
+  Status SetGain(double) override { return Status::Ok(); }
+  Status SetBinning(int) override { return Status::Ok(); }
+
+ protected:
+  Result<Frame> GrabFrame() override { return frame_; }
+
+ private:
+  Frame frame_;
+  hw::CameraInfo info_;
+};
+
+TEST(ScanEndToEnd, AFullQueueStopsTheScanNamingIt) {
+  sim::WorldOptions world;
+  const calib::CalibrationSet cal = testing::PerfectCalibration(world);
+  auto w = std::make_shared<sim::SimWorld>(world);
+  hw::Machine machine = hw::MakeSimMachine(w);
+  ASSERT_TRUE(w->StartPointerLine({0, -50, 0}, {0, 50, 0}, 5000).ok());
+  auto frame = w->Grab();
+  ASSERT_TRUE(frame.ok());
+  machine.camera = std::make_unique<ReplayCamera>(*frame, machine.camera->info());
+  job::ScanOptions o = FastScan();
+  o.binning = 1;
+  o.line_spacing_mm = 0.1;  // 191 lines, each a full 5 MP frame to process
+  o.queue_frames = 1;
+  auto out = job::RunScan(machine, o, vision::StripeOptions{}, cal);
+  ASSERT_FALSE(out.ok());
+  EXPECT_EQ(out.status().code(), StatusCode::kDeviceError);
+  EXPECT_NE(out.status().message().find("frames behind the camera"), std::string::npos)
+      << out.status().message();
+}
+
 // The same scan through the job file and the runner, with the as-designed calibration: the
 // report, cloud and figure exist, and the errors are those of a camera mounted ~2 mm and
 // ~0.3 deg off its drawing with an unknown lens distortion: far larger than with the perfect

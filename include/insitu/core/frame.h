@@ -17,6 +17,11 @@ struct Frame {
   double exposure_us = 0.0;
   double gain_db = 0.0;
   int binning = 1;             // pixels of the full sensor per pixel of this frame, per axis
+  // Where the frame's first pixel lies on the sensor, in the frame's (binned) pixels: a region
+  // of interest's corner. A pixel (u, v) of the frame is (u + offset_x, v + offset_y) of the
+  // whole (binned) sensor.
+  int offset_x = 0;
+  int offset_y = 0;
 
   int bytes_per_pixel() const { return bit_depth > 8 ? 2 : 1; }
   size_t stride_bytes() const { return static_cast<size_t>(width) * bytes_per_pixel(); }

@@ -30,6 +30,16 @@ class Camera {
   virtual Status SetGain(double gain_db) = 0;
   // Pixels of the sensor averaged into one, per axis (1, 2 or 4).
   virtual Status SetBinning(int binning) = 0;
+  // The region of interest: `rows` rows of the full sensor from `first_row` (unbinned), all
+  // columns; rows 0: the whole sensor. A camera may widen it to its own increments; each frame
+  // says where it lies (Frame::offset_y). Fewer rows travel faster: a GigE camera's frame rate
+  // rises as the region shrinks. Errors: out_of_range (outside the sensor), failed_precondition
+  // (a camera without regions).
+  virtual Status SetRegion(int first_row, int rows) {
+    (void)first_row;
+    return rows == 0 ? Status::Ok()
+                     : FailedPrecondition("this camera cannot read a region of its sensor");
+  }
   // Exposes once and returns the frame, checked: a frame whose payload does not match its
   // size and bit depth, or whose size is not the sensor's at the frame's binning, is an error
   // here and never reaches image code. Errors: device_error (timeout, lost packets, a corrupt

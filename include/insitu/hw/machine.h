@@ -23,6 +23,10 @@ class MachineClock {
   virtual ~MachineClock() = default;
   virtual double Now() const = 0;  // seconds
   virtual void SleepFor(double seconds) = 0;
+  // The machine stood idle `wall_seconds` of this computer's time while it computed (a scan
+  // line processed before the next is started): on the wall clock that time has passed
+  // already; a simulated clock advances by it, so machine times compare as on a real cell.
+  virtual void Waited(double wall_seconds) { (void)wall_seconds; }
 };
 
 // The roles a cell's devices play; each is named by its key in a job's `machine:` section.

@@ -4,7 +4,9 @@
 #pragma once
 
 #include <atomic>
+#include <array>
 #include <functional>
+#include <string>
 #include <memory>
 
 #include "insitu/calib/calibration.h"
@@ -31,6 +33,16 @@ struct ScanOptions {
   // 1: camera + light plane (seed 000 method 1); 2: method 1's ray, height from the
   // calibration's height lookup (seed 000 method 2).
   int method = 1;
+  // Grabbing and processing overlap: frames wait for the processing thread in a queue of at
+  // most queue_frames; a full queue stops the scan with an error (a line is never dropped).
+  // false: each line is processed before the next starts (the machine waits for the computer).
+  bool streaming = true;
+  int queue_frames = 8;
+  // The camera reads only the band of rows the stripe can occupy: the lines' points at every
+  // height of height_range_mm (galvo z, mm) projected through the calibration, plus a margin.
+  // A camera without regions reads its whole sensor (a warning says so).
+  bool region = true;
+  std::array<double, 2> height_range_mm{-20.0, 20.0};
 
   Status Validate() const;
   int line_count() const;
@@ -43,7 +55,11 @@ struct ScanStats {
   int64_t valid = 0, none = 0, saturated = 0, two_peaks = 0, too_wide = 0;
   int64_t rejected_geometry = 0;     // valid centre whose ray misses the light plane
   int64_t outside_lookup = 0;        // method 2: centre outside the calibrated volume
-  double machine_time_s = 0.0;       // on the machine's clock
+  double machine_time_s = 0.0;       // on the machine's clock: first line to last frame taken
+  int max_queued_frames = 0;         // streaming: the most frames that waited for processing
+  int region_first_row = 0;          // the camera's band of full-sensor rows
+  int region_rows = 0;
+  std::string region_note;           // why the band is not used, when it is not
   double extract_time_ms = 0.0;      // wall time in the stripe extractor, all frames
 };
 
@@ -74,7 +90,9 @@ class FrameProcessor {
 };
 
 // Runs the scan on `machine` (the pointer is stopped on every exit path). `progress(done,
-// total)` is called after each line; `cancel` stops between lines with status cancelled.
+// total)` is called on the caller's thread after each line taken (done: lines processed);
+// `cancel` stops between lines with status cancelled. Streaming (options.streaming), the lines
+// are processed on a second thread while the next are taken.
 Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
                            const vision::StripeOptions& stripe,
                            const calib::CalibrationSet& calibration,

@@ -148,6 +148,9 @@ class SimWorld {
   Status SetExposure(double exposure_us);
   Status SetGain(double gain_db);
   Status SetBinning(int binning);
+  // Rows [first_row, first_row + rows) of the full sensor (rows 0: all), rounded out to the
+  // binning; frames then hold only those rows (Frame::offset_y) and travel the link faster.
+  Status SetRegion(int first_row, int rows);
   int binning() const;
   double exposure_us() const;
   // Exposes from now for the exposure time (the clock advances) and returns the frame.
@@ -232,6 +235,7 @@ class SimWorld {
   double stage_commanded_z_;  // what the stage reports (stage.scale_error_ppm)
   double gain_db_;
   int binning_ = 1;
+  int region_first_row_ = 0, region_rows_ = 0;  // full-sensor rows; 0 rows: the whole sensor
   uint64_t frame_counter_ = 0;
   int64_t laser_on_ticks_ = 0;
   std::vector<MarkPulse> pulses_;

@@ -31,16 +31,20 @@ struct SimulatedGigECamera::Impl {
     std::memset(out, 0, n);
     const auto& cam = self->world->options().camera;
     const int binning = w > 0 ? cam.width_px / w : 0;
+    // A region of interest: the client's band of rows (OffsetY, Height), all columns.
+    const int y = arv_buffer_get_image_y(buffer);
     if (format != ARV_PIXEL_FORMAT_MONO_8 || binning < 1 || cam.width_px / binning != w ||
-        cam.height_px / binning != h) {
+        y < 0 || y + h > cam.height_px / binning) {
       Logger("sim")->error(
-          "simulated GigE camera: a {} x {} frame (format {:#x}) is not the "
+          "simulated GigE camera: a {} x {} frame at row {} (format {:#x}) is not a band of the "
           "{} x {} Mono8 sensor at binning 1, 2 or 4: sent black",
-          w, h, static_cast<unsigned>(format), cam.width_px, cam.height_px);
+          w, h, y, static_cast<unsigned>(format), cam.width_px, cam.height_px);
       return;
     }
     sim::SimWorld& world = *self->world;
+    const bool whole = h == cam.height_px / binning;
     Status s = world.SetBinning(binning);
+    if (s.ok()) s = world.SetRegion(whole ? 0 : y * binning, whole ? 0 : h * binning);
     if (s.ok()) s = world.SetExposure(static_cast<double>(exposure_us));
     if (s.ok()) s = world.SetGain(static_cast<double>(gain));  // GainRaw taken as dB
     auto frame = s.ok() ? world.Grab() : Result<Frame>(s);

@@ -81,6 +81,9 @@ class SimCamera : public Camera {
   Status SetExposure(double exposure_us) override { return world_->SetExposure(exposure_us); }
   Status SetGain(double gain_db) override { return world_->SetGain(gain_db); }
   Status SetBinning(int binning) override { return world_->SetBinning(binning); }
+  Status SetRegion(int first_row, int rows) override {
+    return world_->SetRegion(first_row, rows);
+  }
 
  protected:
   // Injected faults as a GigE camera shows them: no frame at all (a timeout), a frame that
@@ -170,6 +173,9 @@ class SimClock : public MachineClock {
   explicit SimClock(std::shared_ptr<sim::SimWorld> world) : world_(std::move(world)) {}
   double Now() const override { return world_->now_s(); }
   void SleepFor(double seconds) override { world_->Advance(seconds); }
+  void Waited(double wall_seconds) override {
+    if (wall_seconds > 0) world_->Advance(wall_seconds);
+  }
 
  private:
   std::shared_ptr<sim::SimWorld> world_;
