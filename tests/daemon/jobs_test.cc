@@ -181,6 +181,28 @@ TEST(Jobs, CancelWhileMarkingTurnsTheLaserOffWithinOneHeadTick) {
   EXPECT_EQ(TheNextJobRuns(c), "done");
 }
 
+// A streaming scan (frames processed while the next lines are taken) stops on cancel between
+// lines, ends cancelled, and the machine serves the next job.
+TEST(Jobs, CancelStopsAStreamingScan) {
+  Server server(Loopback("insitu_jobs_cancel_scan"));
+  ASSERT_TRUE(server.Start().ok());
+  Client c(server.port());
+  ASSERT_EQ(c.Call(R"({"id": 1, "cmd": "subscribe"})")["ok"], true);
+  ASSERT_EQ(c.Call(R"({"id": 2, "cmd": "arm"})")["ok"], true);
+  const json started = c.Call(RunLine(
+      3, R"("job": "config/jobs/scan_step_gauge.yaml", "set": {"scan.streaming": true})"));
+  ASSERT_EQ(started["ok"], true) << started.dump();
+  // The first progress of the scan phase past its start: lines are being taken.
+  for (int k = 0; k < 1000; ++k) {
+    const json e = json::parse(c.ReadLine(), nullptr, false);
+    if (e.is_object() && e.value("event", "") == "progress" && e.value("done", 0.0) > 0) break;
+  }
+  ASSERT_EQ(c.Call(R"({"id": 4, "cmd": "cancel"})")["ok"], true);
+  const json end = WaitForJobEnd(c, started["job_id"]);
+  EXPECT_EQ(end["status"], "cancelled") << end.dump();
+  EXPECT_EQ(TheNextJobRuns(c), "done");
+}
+
 // The calibrate job lowers the stage first: a stuck stage faults it there, by name.
 TEST(Jobs, AStageThatDoesNotArriveFaultsTheJob) {
   Server server(Loopback("insitu_jobs_stage"));
