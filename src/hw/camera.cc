@@ -22,8 +22,8 @@ Status CheckFrame(const Frame& frame, const CameraInfo& info) {
   const int max_w = info.sensor_width_px / frame.binning;
   const int max_h = info.sensor_height_px / frame.binning;
   if (frame.offset_x < 0 || frame.offset_y < 0 || frame.width <= 0 || frame.height <= 0 ||
-      (info.sensor_width_px > 0 && frame.offset_x + frame.width > max_w) ||
-      (info.sensor_height_px > 0 && frame.offset_y + frame.height > max_h)) {
+      (info.sensor_width_px > 0 && frame.offset_x > max_w - frame.width) ||
+      (info.sensor_height_px > 0 && frame.offset_y > max_h - frame.height)) {
     return Status(StatusCode::kDeviceError,
                   which + std::to_string(frame.width) + " x " + std::to_string(frame.height) +
                       " px at (" + std::to_string(frame.offset_x) + ", " +

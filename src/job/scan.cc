@@ -299,9 +299,9 @@ Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
   out.stats.region_rows = info.sensor_height_px;
   if (options.region) {
     const auto [first, rows] = StripeBand(options, stripe_options, calibration);
+    region_guard.set = rows > 0;  // whatever happens next, the camera ends whole
     const Status set = machine.camera->SetRegion(first, rows);
     if (set.ok()) {
-      region_guard.set = rows > 0;
       out.stats.region_first_row = first;
       if (rows > 0) out.stats.region_rows = rows;
     } else if (set.code() == StatusCode::kFailedPrecondition) {

@@ -134,11 +134,28 @@ class AravisCamera : public Camera {
                         std::to_string(info_.sensor_height_px));
     }
     if (first_row == region_first_row_ && rows == region_rows_) return Status::Ok();
-    INSITU_RETURN_IF_ERROR(EnsureConnected());
-    link_.StopStream();
+    // Stored first: a camera reconnected later comes back with the region asked for last (the
+    // whole sensor after a scan, even if the camera was away when it asked).
     region_first_row_ = rows == 0 ? 0 : first_row;
     region_rows_ = rows;
-    return StartStream();
+    if (camera() == nullptr) return EnsureConnected();
+    if (rows > 0) {
+      GError* error = nullptr;
+      const bool offsets = arv_camera_is_region_offset_available(camera(), &error);
+      g_clear_error(&error);
+      if (!offsets) {
+        region_first_row_ = region_rows_ = 0;
+        return FailedPrecondition("GigE camera at " + address_ +
+                                  " has no OffsetY: it cannot read a band of its sensor");
+      }
+    }
+    link_.StopStream();
+    const Status started = StartStream();
+    if (!started.ok() && rows > 0) {
+      // Refused: never keep a band the camera will not read; the next grab reconnects whole.
+      region_first_row_ = region_rows_ = 0;
+    }
+    return started;
   }
 
  protected:
@@ -254,6 +271,24 @@ class AravisCamera : public Camera {
     }
     arv_camera_set_region(camera(), 0, y, w, h, &error);
     if (error != nullptr) return Lost("region: " + Take(&error));
+    if (region_rows_ > 0) {
+      // What the camera took: it must hold the band's rows (a camera may clip or ignore).
+      int gx = 0, gy = 0, gw = 0, gh = 0;
+      arv_camera_get_region(camera(), &gx, &gy, &gw, &gh, &error);
+      if (error != nullptr) return Lost("region: " + Take(&error));
+      const int end = std::min(full_h, (region_first_row_ + region_rows_ + binning_ - 1) / binning_);
+      if (gy > region_first_row_ / binning_ || gy + gh < end) {
+        const std::string why = "GigE camera at " + address_ + " took rows " +
+                                std::to_string(gy) + ".." + std::to_string(gy + gh) +
+                                " for the band " + std::to_string(region_first_row_ / binning_) +
+                                ".." + std::to_string(end);
+        region_first_row_ = region_rows_ = 0;  // the whole sensor, as before the request
+        arv_camera_set_region(camera(), 0, 0, w, full_h, &error);
+        if (error != nullptr) return Lost("region: " + Take(&error));
+        const Status s = link_.StartStream(options_.buffers, options_.socket_buffer_bytes);
+        return s.ok() ? FailedPrecondition(why) : Lost(s.message());
+      }
+    }
     const Status s = link_.StartStream(options_.buffers, options_.socket_buffer_bytes);
     return s.ok() ? s : Lost(s.message());
   }
