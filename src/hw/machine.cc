@@ -57,11 +57,15 @@ bool Machine::Has(Role role) const {
 Status Machine::Require(std::initializer_list<Role> roles, const std::string& who) const {
   for (Role r : roles) {
     if (Has(r)) continue;
-    return FailedPrecondition(who + " needs a " + RoleName(r) + ", and the cell has none " +
-                              "(machine." + RoleKey(r) + " names no device" +
-                              (real ? " on this real cell" : "") + ")");
+    return MissingRole(r, who, real);
   }
   return Status::Ok();
+}
+
+Status MissingRole(Role role, const std::string& who, bool real) {
+  return FailedPrecondition(who + " needs a " + RoleName(role) + ", and the cell has none " +
+                            "(machine." + RoleKey(role) + " names no device" +
+                            (real ? " on this real cell" : "") + ")");
 }
 
 namespace {

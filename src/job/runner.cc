@@ -372,10 +372,8 @@ Status CheckRoles(const LoadedJob& job, const Roles& roles) {
   ReadMachine(r, job.folder, &machine);
   for (Role role : roles) {
     if (hw::DeviceFor(machine.config, role) != "none") continue;
-    return FailedPrecondition(job.path + ": the " + job.kind + " job needs a " +
-                              hw::RoleName(role) + ", and the cell has none (machine." +
-                              hw::RoleKey(role) + " names no device" +
-                              (hw::IsRealCell(machine.config) ? " on this real cell" : "") + ")");
+    return hw::MissingRole(role, job.path + ": the " + job.kind + " job",
+                           hw::IsRealCell(machine.config));
   }
   return Status::Ok();
 }

@@ -37,6 +37,9 @@ inline constexpr Role kRoles[] = {Role::kScanner, Role::kCamera, Role::kCoaxial,
 const char* RoleKey(Role role);
 // "scan head", "side camera", "coaxial camera", "Z stage", "axis", "line profiler", "operator".
 const char* RoleName(Role role);
+// failed_precondition: `who` needs a device for `role` and the cell (`real` or simulated) has
+// none. The one wording of the refusal, at run and at bring-up.
+Status MissingRole(Role role, const std::string& who, bool real);
 
 struct Machine {
   // What the backend serves for its own devices to talk to (a simulated GigE camera, a board
