@@ -48,4 +48,14 @@ Result<Frame> Camera::Grab() {
   return frame;
 }
 
+Status Camera::SetRegion(int first_row, int rows) {
+  const int h = info().sensor_height_px;
+  if (rows < 0 || first_row < 0 || (rows > 0 && first_row > h - rows)) {
+    return OutOfRange("region: rows " + std::to_string(first_row) + ".." +
+                      std::to_string(static_cast<long long>(first_row) + rows) +
+                      " outside the sensor's 0.." + std::to_string(h));
+  }
+  return ApplyRegion(first_row, rows);
+}
+
 }  // namespace insitu::hw

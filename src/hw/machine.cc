@@ -112,6 +112,13 @@ Result<std::unique_ptr<Camera>> OpenAravisCamera(const AravisDeviceConfig& a,
                                                  Machine* m) {
   aravis::CameraOptions options = a.camera;
   if (!a.simulate_on.empty()) {
+    if (options.trigger != "software") {
+      // Aravis's fake camera sends frames on software triggers only.
+      return InvalidArgument(
+          "aravis.trigger: the GigE camera served by the simulator takes software trigger only "
+          "(camera: sim with the world's camera.head_trigger models a camera on the head's "
+          "trigger output)");
+    }
     INSITU_ASSIGN_OR_RETURN(std::shared_ptr<aravis::SimulatedGigECamera> served,
                             aravis::SimulatedGigECamera::Start(world, a.simulate_on,
                                                                world->options().camera.serial));

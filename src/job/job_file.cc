@@ -240,6 +240,8 @@ void ReadMachine(ConfigReader& root, const std::string& folder, MachineSpec* spe
     l.Read("focus_range_mm", &b.focus_range_mm);
     ReadWord(l, "list_ports", &b.list_ports);
     ReadWord(l, "pointer_port", &b.pointer_port);
+    ReadWord(l, "trigger_port", &b.trigger_port);
+    l.Read("trigger_pulse_us", &b.trigger_pulse_us);
     l.Read("open_mo_delay_us", &b.open_mo_delay_us);
     l.Read("polygon_delay_us", &b.polygon_delay_us);
     l.Read("poll_ms", &b.poll_ms);

@@ -160,6 +160,8 @@ Status SaveScan(const ScanOutput& scanned, const ScanJobSpec& spec, const std::s
   m["camera_rows"] = st.region_rows;
   m["camera_frame_rate_hz"] = st.machine_time_s > 0 ? st.lines / st.machine_time_s : 0.0;
   m["max_queued_frames"] = st.max_queued_frames;
+  // 1: the scan head's pulses exposed the lines (camera.head_trigger / lmc.trigger_port).
+  m["camera_head_triggered"] = st.trigger == "head" ? 1.0 : 0.0;
   if (!st.region_note.empty()) report->warnings.push_back("camera region: " + st.region_note);
   if (st.saturated > 0) {
     report->warnings.push_back(std::to_string(st.saturated) +

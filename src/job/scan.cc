@@ -311,19 +311,23 @@ Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
     }
   }
 
-  struct PointerGuard {  // the pointer never keeps running after the scan, whatever happens
-    hw::Scanner* s;
-    ~PointerGuard() { (void)s->StopPointer(); }
-  } guard{machine.scanner.get()};
-
   const int lines = options.line_count();
+  // A camera wired to the head's trigger output exposes on the head's pulses: the head paces
+  // the scan, and the lines always stream (the head does not wait for the processing).
+  const bool triggered = machine.camera->head_triggered();
+  if (triggered && !machine.scanner->info().trigger_output) {
+    return FailedPrecondition(
+        "the camera is triggered by the scan head, but the head has no trigger output "
+        "(machine.lmc.trigger_port names the board's output wired to the camera)");
+  }
+  const bool streaming = options.streaming || triggered;
   // Streaming: one thread processes the frames in line order while this one takes the next.
   FrameQueue queue(options.queue_frames);
   std::atomic<int> processed{0};
   std::atomic<bool> failed{false};
   Status processing;  // the processing thread's first error (read after it has ended)
   std::thread worker;
-  if (options.streaming) {
+  if (streaming) {
     worker = std::thread([&] {
       while (auto next = queue.Pop()) {
         if (!processing.ok()) continue;  // drain: the scan is stopping
@@ -344,39 +348,116 @@ Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
     const Status joined = join();
     return joined.ok() ? why : joined;
   };
-
-  const double t_start = machine.clock->Now();
-  for (int i = 0; i < lines; ++i) {
-    if (cancel && cancel->load()) return stop(Status(StatusCode::kCancelled, "scan cancelled"));
-    if (failed.load()) return stop(Status::Ok());  // the processing thread's error
-    const double x = options.line_x(i);
-    const Eigen::Vector3d from(x, options.y_start_mm, options.focus_z_mm);
-    const Eigen::Vector3d to(x, options.y_end_mm, options.focus_z_mm);
-    const Status on = machine.scanner->StartPointerLine(from, to, options.speed_mm_per_s);
-    if (!on.ok()) return stop(on.Prefixed("line " + std::to_string(i)));
-    machine.clock->SleepFor(options.settle_ms * 1e-3);
-    auto frame = machine.camera->Grab();
-    if (!frame.ok()) {
-      return stop(frame.status().Prefixed("line " + std::to_string(i) + ": camera"));
-    }
-    if (options.streaming) {
-      if (!queue.Push(i, std::move(*frame))) {
-        return stop(DeviceError(
+  const auto line_from = [&](int i) {
+    return Eigen::Vector3d(options.line_x(i), options.y_start_mm, options.focus_z_mm);
+  };
+  const auto line_to = [&](int i) {
+    return Eigen::Vector3d(options.line_x(i), options.y_end_mm, options.focus_z_mm);
+  };
+  // Line i's frame to the processing (streaming), or processed here.
+  const auto take = [&](int i, Frame frame) -> Status {
+    if (streaming) {
+      if (!queue.Push(i, std::move(frame))) {
+        return DeviceError(
             "line " + std::to_string(i) + ": the processing fell " +
             std::to_string(options.queue_frames) +
             " frames behind the camera (scan.queue_frames); no line was dropped, the scan "
-            "stopped: lower the camera's frame rate or raise queue_frames"));
+            "stopped: lower the camera's frame rate or raise queue_frames");
       }
-    } else {
-      const auto t0 = std::chrono::steady_clock::now();
-      INSITU_RETURN_IF_ERROR(processor->Process(*frame, i, &out));
-      // The next line waits for this one's processing: on a real cell that time passes anyway;
-      // a simulated machine's clock is told (MachineClock::Waited).
-      machine.clock->Waited(
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-      processed.store(i + 1);
+      return Status::Ok();
     }
-    if (progress) progress(processed.load(), lines);
+    const auto t0 = std::chrono::steady_clock::now();
+    INSITU_RETURN_IF_ERROR(processor->Process(frame, i, &out));
+    // The next line waits for this one's processing: on a real cell that time passes anyway;
+    // a simulated machine's clock is told (MachineClock::Waited).
+    machine.clock->Waited(
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    processed.store(i + 1);
+    return Status::Ok();
+  };
+
+  const double t_start = machine.clock->Now();
+  if (triggered) {
+    hw::TriggeredSweep sweep;
+    for (int i = 0; i < lines; ++i) sweep.lines.emplace_back(line_from(i), line_to(i));
+    sweep.speed_mm_per_s = options.speed_mm_per_s;
+    sweep.settle_s = options.settle_ms * 1e-3;
+    // The pointer stays on its line through the whole exposure (0.5 ms beyond it: the
+    // camera's exposure starts microseconds after the edge), and pulses come no faster than
+    // the camera takes frames, 2 % under its rate for the trigger's own overhead: a pulse
+    // while it is still busy would be ignored and the line lost.
+    const double rate = machine.camera->max_frame_rate_hz();
+    const double period = rate > 0 ? 1.02 / rate : 0.0;
+    sweep.dwell_s = std::max(options.exposure_ms * 1e-3 + 0.5e-3, period - sweep.settle_s);
+    out.stats.trigger = "head";
+    INSITU_RETURN_IF_ERROR(machine.camera->StartTriggered().Prefixed("camera trigger"));
+    struct TriggerGuard {  // the camera back on software trigger, whatever happens
+      hw::Camera* camera;
+      ~TriggerGuard() { (void)camera->StopTriggered(); }
+    } trigger_guard{machine.camera.get()};
+    // The head runs the sweep on its own thread; a cancel reaches it between lines.
+    std::atomic<bool> head_abort{false};
+    Status head_status;
+    hw::ListControl control;
+    control.abort = &head_abort;
+    control.progress = [&](double) {
+      if (cancel && cancel->load()) head_abort.store(true);
+    };
+    std::thread head([&] { head_status = machine.scanner->RunTriggeredSweep(sweep, control); });
+    const auto end_head = [&]() -> Status {
+      head_abort.store(true);
+      if (head.joinable()) head.join();
+      return head_status;
+    };
+    for (int i = 0; i < lines; ++i) {
+      if (cancel && cancel->load()) {
+        (void)end_head();
+        return stop(Status(StatusCode::kCancelled, "scan cancelled"));
+      }
+      if (failed.load()) {
+        (void)end_head();
+        return stop(Status::Ok());
+      }
+      auto frame = machine.camera->Grab();
+      if (!frame.ok()) {
+        // The head's own failure explains a missing frame better than the camera's wait.
+        const Status head_ended = end_head();
+        if (cancel && cancel->load()) {
+          return stop(Status(StatusCode::kCancelled, "scan cancelled"));
+        }
+        if (!head_ended.ok()) return stop(head_ended.Prefixed("scan head"));
+        return stop(frame.status().Prefixed("line " + std::to_string(i) + ": camera"));
+      }
+      const Status taken = take(i, std::move(*frame));
+      if (!taken.ok()) {
+        (void)end_head();
+        return stop(taken);
+      }
+      if (progress) progress(processed.load(), lines);
+    }
+    head.join();
+    if (!head_status.ok()) return stop(head_status.Prefixed("scan head"));
+  } else {
+    struct PointerGuard {  // the pointer never keeps running after the scan, whatever happens
+      hw::Scanner* s;
+      ~PointerGuard() { (void)s->StopPointer(); }
+    } guard{machine.scanner.get()};
+    out.stats.trigger = "software";
+    for (int i = 0; i < lines; ++i) {
+      if (cancel && cancel->load()) return stop(Status(StatusCode::kCancelled, "scan cancelled"));
+      if (failed.load()) return stop(Status::Ok());  // the processing thread's error
+      const Status on =
+          machine.scanner->StartPointerLine(line_from(i), line_to(i), options.speed_mm_per_s);
+      if (!on.ok()) return stop(on.Prefixed("line " + std::to_string(i)));
+      machine.clock->SleepFor(options.settle_ms * 1e-3);
+      auto frame = machine.camera->Grab();
+      if (!frame.ok()) {
+        return stop(frame.status().Prefixed("line " + std::to_string(i) + ": camera"));
+      }
+      const Status taken = take(i, std::move(*frame));
+      if (!taken.ok()) return stop(taken);
+      if (progress) progress(processed.load(), lines);
+    }
   }
   out.stats.machine_time_s = machine.clock->Now() - t_start;
   INSITU_RETURN_IF_ERROR(join());

@@ -134,6 +134,7 @@ void SimWorld::Advance(double seconds) {
   std::lock_guard<std::recursive_mutex> lock(mutex_);
   now_s_ += std::max(0.0, seconds);
   PaceTo(now_s_);
+  triggered_wake_.notify_all();
 }
 
 void SimWorld::PaceTo(double t) {
@@ -524,11 +525,116 @@ double SimWorld::exposure_us() const { return exposure_us_; }
 
 Result<Frame> SimWorld::Grab() {
   std::lock_guard<std::recursive_mutex> lock(mutex_);
+  double link_s = 0.0;
+  INSITU_ASSIGN_OR_RETURN(Frame frame, Expose(now_s_, &link_s));
+  now_s_ += exposure_us_ * 1e-6 + link_s;
+  PaceTo(now_s_);
+  triggered_wake_.notify_all();
+  return frame;
+}
+
+double SimWorld::LinkSeconds(size_t bytes) const {
+  const double rate = options_.camera.link_mb_per_s;
+  return rate > 0 ? static_cast<double>(bytes) / (rate * 1e6) : 0.0;
+}
+
+double SimWorld::MaxFrameRateHz() const {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  const CameraOptions cam = BinnedCamera(options_.camera, binning_);
+  int rows = cam.height_px;
+  if (region_rows_ > 0) {
+    rows = std::min(cam.height_px, (region_first_row_ + region_rows_ + binning_ - 1) / binning_) -
+           region_first_row_ / binning_;
+  }
+  const size_t bytes = static_cast<size_t>(cam.width_px) * rows * (cam.bit_depth > 8 ? 2 : 1);
+  // The sensor exposes the next frame while the last one crosses the link.
+  return 1.0 / std::max(exposure_us_ * 1e-6, LinkSeconds(bytes));
+}
+
+void SimWorld::ArmTrigger(bool armed) {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  trigger_armed_ = armed && options_.camera.head_trigger;
+  head_started_ = false;
+  triggered_.clear();
+  ignored_pulses_ = 0;
+  triggered_wake_.notify_all();
+}
+
+void SimWorld::TriggerPulse() {
+  std::unique_lock<std::recursive_mutex> lock(mutex_);
+  if (!trigger_armed_) return;
+  // Virtual time stays causal across threads: the host takes the frames that have arrived by
+  // now before the head goes on, as it would on a real cell, where the head's time is the
+  // host's. (The head's thread takes the world's lock for every step; without this wait it
+  // runs the whole scan before the host's thread gets the lock once.) A host that takes no
+  // frames at all holds the head up for at most 1 s of this computer's time per pulse.
+  triggered_wake_.wait_for(lock, std::chrono::seconds(1), [this] {
+    return triggered_.empty() || triggered_.front().arrival_s > now_s_;
+  });
+  if (now_s_ < exposing_until_s_) {  // still exposing the last frame: the edge is lost
+    ++ignored_pulses_;
+    return;
+  }
+  double link_s = 0.0;
+  auto frame = Expose(now_s_, &link_s);
+  exposing_until_s_ = now_s_ + exposure_us_ * 1e-6;
+  // Frames leave one after another: this one once exposed and once the link is free.
+  link_free_s_ = std::max(exposing_until_s_, link_free_s_) + link_s;
+  triggered_.push_back({std::move(frame), link_free_s_});
+  triggered_wake_.notify_all();
+}
+
+void SimWorld::SetHeadRunning(bool running) {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  head_running_ = running;
+  head_started_ = head_started_ || running;
+  triggered_wake_.notify_all();
+}
+
+int SimWorld::ignored_pulses() const {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  return ignored_pulses_;
+}
+
+Result<Frame> SimWorld::TakeTriggered(double wall_timeout_s) {
+  std::unique_lock<std::recursive_mutex> lock(mutex_);
+  const auto deadline = std::chrono::steady_clock::now() +
+                        std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                            std::chrono::duration<double>(wall_timeout_s));
+  // While the head runs, the clock is the head's: a frame is there once it passes the
+  // frame's arrival. Once the head has stopped, waiting for the link is this call's own time,
+  // and with no frame left none will come. Before the head starts, wait for it.
+  const auto ready = [&] {
+    return (!triggered_.empty() && (!head_running_ || triggered_.front().arrival_s <= now_s_)) ||
+           (triggered_.empty() && head_started_ && !head_running_);
+  };
+  const bool woke = triggered_wake_.wait_until(lock, deadline, ready);
+  if (!woke) {
+    return Status(StatusCode::kDeviceError, "camera: no triggered frame within " +
+                                                std::to_string(wall_timeout_s) + " s");
+  }
+  if (triggered_.empty()) {
+    return Status(StatusCode::kDeviceError,
+                  "camera: no frame: the scan head stopped and no trigger pulse is left (" +
+                      std::to_string(ignored_pulses_) +
+                      " pulses came while the camera was exposing and were ignored)");
+  }
+  Triggered next = std::move(triggered_.front());
+  triggered_.pop_front();
+  triggered_wake_.notify_all();  // a head waiting for this take goes on
+  if (next.arrival_s > now_s_) {
+    now_s_ = next.arrival_s;
+    PaceTo(now_s_);
+  }
+  return std::move(next.frame);
+}
+
+Result<Frame> SimWorld::Expose(double t0, double* link_s_out) {
   const CameraOptions cam_opts = BinnedCamera(options_.camera, binning_);
   const CameraModel& cam = *camera_binned_;
   const int w = cam_opts.width_px, h = cam_opts.height_px;
   const double exposure_s = exposure_us_ * 1e-6;
-  const double t0 = now_s_, t1 = now_s_ + exposure_s;
+  const double t1 = t0 + exposure_s;
   const double pixel_area_m2 = std::pow(cam_opts.pixel_pitch_um * 1e-6, 2);
   const double aperture = M_PI / (4.0 * cam_opts.f_number * cam_opts.f_number);
   const auto& light = options_.light;
@@ -736,11 +842,7 @@ Result<Frame> SimWorld::Grab() {
     frame.height = last - first;
   }
   // The frame then crosses the camera's link: its bytes at the link's rate.
-  const double link_s = cam_opts.link_mb_per_s > 0
-                            ? static_cast<double>(frame.bytes.size()) / (cam_opts.link_mb_per_s * 1e6)
-                            : 0.0;
-  now_s_ = t1 + link_s;
-  PaceTo(now_s_);
+  *link_s_out = LinkSeconds(frame.bytes.size());
   return frame;
 }
 

@@ -125,6 +125,7 @@ void ReadWorld(ConfigReader& r, WorldOptions* w) {
   c.Read("exposure_ms", &co.exposure_ms);
   c.Read("noise", &co.noise);
   c.Read("link_mb_per_s", &co.link_mb_per_s);
+  c.Read("head_trigger", &co.head_trigger);
   if (c.ok()) c.FailFromValidate(co.Validate());
 
   ConfigReader& l = r.Section("light");

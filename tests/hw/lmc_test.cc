@@ -111,6 +111,49 @@ TEST(Lmc, SingleCommandsAndUnits) {
   EXPECT_EQ(EncodeList(l, BoardOptions{}, &at, &z).status().code(), StatusCode::kOutOfRange);
 }
 
+// A triggered sweep is one light list: per line a jump to its start, the settle as a jump
+// delay, the trigger bit raised for the pulse beside the pointer's bit and lowered, then
+// passes back and forth for the dwell (12 ms at 2000 mm/s over 20 mm: 24 mm, two passes).
+TEST(Lmc, ATriggeredSweepRaisesTheTriggerBitOncePerLine) {
+  BoardOptions o;
+  o.trigger_port = 0x0002;
+  TriggeredSweep sweep;
+  sweep.lines = {{{-10, 0, 0}, {10, 0, 0}}, {{-10, 1, 0}, {10, 1, 0}}};
+  sweep.speed_mm_per_s = 2000.0;
+  sweep.settle_s = 0.005;
+  sweep.dwell_s = 0.012;
+  std::array<uint16_t, 2> at{0x8000, 0x8000};
+  uint16_t z = 0;
+  const auto list = EncodeTriggeredSweep(sweep, o, &at, &z);
+  ASSERT_TRUE(list.ok()) << list.status().ToString();
+  const std::string text = FormatCommands(*list);
+  // The header: the pointer's port, no laser current, the sweep's speed (2000 mm/s).
+  EXPECT_NE(text.find("listWritePort        0100 0000"), std::string::npos) << text;
+  EXPECT_NE(text.find("listMarkCurrent      0000 0000"), std::string::npos) << text;
+  const std::string first_line =
+      "listJumpTo           68ba 8000 0000 1746 0000\n"
+      "listJumpDelay        1388 0000 0000 0000 0000\n"
+      "listWritePort        0102 0000 0000 0000 0000\n"
+      "listDelayTime        000a 0000 0000 0000 0000\n"
+      "listWritePort        0100 0000 0000 0000 0000\n"
+      "listJumpTo           9745 8000 0000 2e8b 0000\n"
+      "listJumpTo           68ba 8000 0000 2e8b 0000\n";
+  EXPECT_NE(text.find(first_line), std::string::npos) << text;
+  size_t rises = 0;
+  for (const Command& c : *list) rises += c[0] == kWritePortList && (c[1] & 0x0002);
+  EXPECT_EQ(rises, 2u);
+  // A board without the output, a settle longer than the jump delay holds: refused.
+  EXPECT_EQ(EncodeTriggeredSweep(sweep, BoardOptions{}, &at, &z).status().code(),
+            StatusCode::kFailedPrecondition);
+  sweep.settle_s = 0.07;
+  EXPECT_EQ(EncodeTriggeredSweep(sweep, o, &at, &z).status().code(), StatusCode::kOutOfRange);
+  // The output must be one bit of its own.
+  o.trigger_port = 0x0003;
+  EXPECT_EQ(o.Validate().code(), StatusCode::kInvalidArgument);
+  o.trigger_port = 0x0100;  // the pointer's
+  EXPECT_EQ(o.Validate().code(), StatusCode::kInvalidArgument);
+}
+
 TEST(Lmc, CorFilesRoundTripInBothFormats) {
   std::mt19937 rng(7);
   std::uniform_int_distribution<int> offset(-3000, 3000);

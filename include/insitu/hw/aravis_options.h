@@ -15,8 +15,10 @@ struct CameraOptions {
   // user id (DeviceUserID). Empty: the only GigE camera found.
   std::string device;
   int bit_depth = 8;  // 8 (Mono8), 12 (Mono12, in 16-bit samples) or 16 (Mono16)
-  // "software": each grab triggers the frame; "Line0".."Line3": a hardware trigger on that
-  // input (the grab waits for the pulse and the frame, up to the timeout).
+  // "software": each grab triggers the frame. "Line0".."Line3": that input is wired to the
+  // scan head's trigger output (lmc.trigger_port): a scan's frames are exposed by the head's
+  // pulses, one per line, and each grab waits for the next one up to the timeout; single
+  // grabs (calibration, verification) still trigger in software.
   std::string trigger = "software";
   // The image read out, unbinned, from the sensor's corner (0: the whole sensor). It is what
   // info() reports as the sensor and what the calibration file must describe.

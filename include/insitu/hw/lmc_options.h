@@ -34,6 +34,10 @@ struct BoardOptions {
   double focus_range_mm = 0.0;       // +- focus travel of the shifter
   uint16_t list_ports = 0x0001;      // port word at the start of a marking list
   uint16_t pointer_port = 0x0100;    // the red pointer's output bit
+  // The output bit wired to the side camera's trigger input (0: none). A triggered scan runs
+  // as one list that raises it for trigger_pulse_us on each line, once the mirrors settled.
+  uint16_t trigger_port = 0;
+  double trigger_pulse_us = 100.0;   // sent in 10 us units; the camera's minimum is a few us
   double open_mo_delay_us = 8000.0;  // the fibre laser's master oscillator settles
   double polygon_delay_us = 100.0;   // sent in 10 us units
   int poll_ms = 2;                   // status poll period while a list runs

@@ -7,6 +7,7 @@
 #include <atomic>
 #include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -45,6 +46,22 @@ struct ScannerInfo {
   double field_half_size_mm = 0.0;  // commands beyond +-this are refused
   double focus_range_mm = 0.0;      // dynamic focus +-
   double clock_us = 10.0;
+  // The head has an output wired to the side camera's trigger input (RunTriggeredSweep).
+  bool trigger_output = false;
+};
+
+// A scan as one run of the head, pacing the camera: for each line the pointer goes to the
+// line's start, the mirrors settle for `settle_s`, the head pulses its trigger output (the
+// camera exposes from that edge), and the pointer sweeps the line for `dwell_s` (at least the
+// exposure) before the next line. Positions in the galvo frame, mm.
+struct TriggeredSweep {
+  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> lines;  // from, to
+  double speed_mm_per_s = 500.0;
+  double settle_s = 0.02;
+  double dwell_s = 0.05;
+
+  // Errors: invalid_argument (no lines, speed <= 0, a negative or non-finite time).
+  Status Validate() const;
 };
 
 // How a running list is stopped, and what it tells while it runs.
@@ -74,6 +91,23 @@ class Scanner {
                                   const Eigen::Vector3d& to_in_galvo, double speed_mm_per_s) = 0;
   virtual Status StopPointer() = 0;
 
+  // Runs `sweep` on the head's clock, pulsing the trigger output once per line, and returns
+  // when the last line's dwell has passed (the pointer is then off). control.abort stops it
+  // between pulses (cancelled); control.progress gets the fraction of lines done.
+  // Errors: failed_precondition (the head has no trigger output), out_of_range (a line
+  // outside the field or focus range), invalid_argument (TriggeredSweep::Validate),
+  // device_error.
+  Status RunTriggeredSweep(const TriggeredSweep& sweep, const ListControl& control = {}) {
+    if (!info().trigger_output) {
+      return FailedPrecondition("the scan head has no trigger output for the camera");
+    }
+    INSITU_RETURN_IF_ERROR(sweep.Validate());
+    if (control.abort != nullptr && control.abort->load()) {
+      return Status(StatusCode::kCancelled, "sweep aborted before it started");
+    }
+    return RunSweep(sweep, control);
+  }
+
   // Arming enables the marking laser for ExecuteList; disarm when the job ends or fails.
   virtual Status Arm() = 0;
   virtual Status Disarm() = 0;
@@ -97,6 +131,13 @@ class Scanner {
   // The backend's list execution. ExecuteList has checked the abort flag once, and that a list
   // which marks runs only on an armed head.
   virtual Status RunList(const GalvoList& list, const ListControl& control) = 0;
+  // The backend's triggered sweep (a head whose info() has trigger_output). The sweep is
+  // valid and not aborted yet.
+  virtual Status RunSweep(const TriggeredSweep& sweep, const ListControl& control) {
+    (void)sweep;
+    (void)control;
+    return FailedPrecondition("the scan head has no trigger output for the camera");
+  }
 };
 
 }  // namespace insitu::hw

@@ -60,6 +60,7 @@ struct ScanStats {
   int region_first_row = 0;          // the camera's band of full-sensor rows
   int region_rows = 0;
   std::string region_note;           // why the band is not used, when it is not
+  std::string trigger;               // "software" (a grab per line) or "head" (its pulses)
   double extract_time_ms = 0.0;      // wall time in the stripe extractor, all frames
 };
 

@@ -9,6 +9,8 @@
 #include <array>
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
+#include <deque>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -155,6 +157,27 @@ class SimWorld {
   double exposure_us() const;
   // Exposes from now for the exposure time (the clock advances) and returns the frame.
   Result<Frame> Grab();
+  // Frames per second the camera keeps at its exposure, binning and region: it exposes the
+  // next frame while the last crosses the link, so 1 / max(exposure, link time).
+  double MaxFrameRateHz() const;
+
+  // The camera's trigger input, wired to the scan head's output (camera.head_trigger; without
+  // it arming does nothing). While armed each pulse exposes a frame from that instant; frames
+  // cross the link one after another and wait in order for TakeTriggered. A pulse while the
+  // camera still exposes the last frame is ignored and counted, as a real camera ignores it.
+  void ArmTrigger(bool armed);
+  // The head's trigger output rises now.
+  void TriggerPulse();
+  // The head runs a triggered sweep: while it runs the clock is the head's, and TakeTriggered
+  // waits for it to pass a frame's arrival; once it has stopped TakeTriggered advances the
+  // clock to the arrival itself.
+  void SetHeadRunning(bool running);
+  // The next triggered frame once it has arrived (before the head has started, it waits for
+  // it). Errors: device_error when none will come (the head has run and stopped and none
+  // waits: its message counts the ignored pulses), or none within `wall_timeout_s` of this
+  // computer's time.
+  Result<Frame> TakeTriggered(double wall_timeout_s);
+  int ignored_pulses() const;
 
   // The scan head's coaxial camera: exposes for `exposure_us` around where the head points,
   // sharp at the dynamic-focus height (the clock advances). 8-bit frame.
@@ -219,6 +242,10 @@ class SimWorld {
   // time `t` (scaled). A stretch where the simulation ran slower than that re-anchors instead
   // of letting virtual time race ahead afterwards.
   void PaceTo(double t);
+  // A frame exposed from `t0` for the exposure (the clock does not move), cropped to the
+  // region; `*link_s` the time it takes on the link.
+  Result<Frame> Expose(double t0, double* link_s);
+  double LinkSeconds(size_t bytes) const;
 
   // The devices' threads (a served GigE camera, a board emulator) and the job's thread may
   // reach the world at once: every public operation that changes it takes this lock.
@@ -236,6 +263,19 @@ class SimWorld {
   double gain_db_;
   int binning_ = 1;
   int region_first_row_ = 0, region_rows_ = 0;  // full-sensor rows; 0 rows: the whole sensor
+  // The hardware-triggered camera: frames exposed on pulses, waiting with their arrival.
+  struct Triggered {
+    Result<Frame> frame;
+    double arrival_s = 0.0;
+  };
+  bool trigger_armed_ = false;
+  bool head_running_ = false;
+  bool head_started_ = false;  // since the trigger was armed
+  std::deque<Triggered> triggered_;
+  double exposing_until_s_ = 0.0;
+  double link_free_s_ = 0.0;
+  int ignored_pulses_ = 0;
+  std::condition_variable_any triggered_wake_;
   uint64_t frame_counter_ = 0;
   int64_t laser_on_ticks_ = 0;
   std::vector<MarkPulse> pulses_;

@@ -117,6 +117,10 @@ struct CameraOptions {
   // bytes takes n / link to arrive: the rate falls with the region's size as on a real camera.
   // 0: no link time.
   double link_mb_per_s = 118.0;
+  // Its trigger input is wired to the scan head's trigger output: a scan exposes each line on
+  // the head's pulse, and the next line starts while the frame crosses the link. A pulse that
+  // comes while the camera still exposes is ignored, as on a real camera.
+  bool head_trigger = false;
 
   Status Validate() const;
 };

@@ -4,6 +4,7 @@
 #include <arv.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <string>
 
@@ -60,7 +61,8 @@ class AravisCamera : public Camera {
     arv_camera_get_frame_rate_bounds(camera(), &lo, &hi, &error);
     if (error == nullptr) arv_camera_set_frame_rate(camera(), hi, &error);
     g_clear_error(&error);  // not every camera has a settable rate
-    const Status a = link_.SetAcquisition(options_.trigger, options_.packet_size, &exposure_us_);
+    // Software trigger for single grabs; a scan switches to the head's input (StartTriggered).
+    const Status a = link_.SetAcquisition("software", options_.packet_size, &exposure_us_);
     if (!a.ok()) {
       Disconnect();
       return Status(a.code(), "GigE camera at " + address_ + ": " + a.message());
@@ -80,6 +82,43 @@ class AravisCamera : public Camera {
   void Disconnect(bool reachable = true) { link_.Close(reachable); }
 
   CameraInfo info() const override { return info_; }
+
+  bool head_triggered() const override { return options_.trigger != "software"; }
+
+  // The head's pulses on the wired input expose the frames; frames of earlier grabs still in
+  // the stream's queue are dropped first, so the n-th grab is the n-th pulse's frame.
+  Status StartTriggered() override {
+    if (!head_triggered()) return Camera::StartTriggered();
+    INSITU_RETURN_IF_ERROR(EnsureConnected());
+    while (ArvBuffer* old = arv_stream_try_pop_buffer(stream())) arv_stream_push_buffer(stream(), old);
+    GError* error = nullptr;
+    arv_camera_set_trigger_source(camera(), options_.trigger.c_str(), &error);
+    if (error != nullptr) return Lost("trigger source " + options_.trigger + ": " + Take(&error));
+    triggered_ = true;
+    return Status::Ok();
+  }
+  Status StopTriggered() override {
+    if (!triggered_) return Status::Ok();
+    triggered_ = false;
+    if (camera() == nullptr) return Status::Ok();  // a reconnect comes back on software
+    GError* error = nullptr;
+    arv_camera_set_trigger_source(camera(), "Software", &error);
+    if (error != nullptr) return Lost("trigger source Software: " + Take(&error));
+    return Status::Ok();
+  }
+  // The camera's own bound on AcquisitionFrameRate at its exposure and region (SFNC cameras
+  // lower it as the exposure grows and raise it as the region shrinks); 0 without one.
+  double max_frame_rate_hz() const override {
+    if (camera() == nullptr) return 0.0;
+    GError* error = nullptr;
+    double lo = 0, hi = 0;
+    arv_camera_get_frame_rate_bounds(camera(), &lo, &hi, &error);
+    if (error != nullptr) {
+      g_clear_error(&error);
+      return 0.0;
+    }
+    return hi > 0 && std::isfinite(hi) ? hi : 0.0;
+  }
 
   Status SetExposure(double exposure_us) override {
     INSITU_RETURN_IF_ERROR(EnsureConnected());
@@ -127,12 +166,7 @@ class AravisCamera : public Camera {
     return StartStream();
   }
 
-  Status SetRegion(int first_row, int rows) override {
-    if (rows < 0 || first_row < 0 || (rows > 0 && first_row + rows > info_.sensor_height_px)) {
-      return OutOfRange("region: rows " + std::to_string(first_row) + ".." +
-                        std::to_string(first_row + rows) + " outside the sensor's 0.." +
-                        std::to_string(info_.sensor_height_px));
-    }
+  Status ApplyRegion(int first_row, int rows) override {
     if (first_row == region_first_row_ && rows == region_rows_) return Status::Ok();
     // Stored first: a camera reconnected later comes back with the region asked for last (the
     // whole sensor after a scan, even if the camera was away when it asked).
@@ -162,24 +196,19 @@ class AravisCamera : public Camera {
   Result<Frame> GrabFrame() override {
     INSITU_RETURN_IF_ERROR(EnsureConnected());
     GError* error = nullptr;
-    if (options_.trigger == "software") {
+    if (!triggered_) {
       arv_camera_software_trigger(camera(), &error);
       if (error != nullptr) return Lost("trigger: " + Take(&error), /*reachable=*/false);
-    }
-    const bool hardware = options_.trigger != "software";
-    if (hardware) {
-      // Frames from pulses that came before this grab are not this grab's: drop them.
-      while (ArvBuffer* old = arv_stream_try_pop_buffer(stream()))
-        arv_stream_push_buffer(stream(), old);
     }
     const double wait_ms = exposure_us_ * 1e-3 + options_.frame_timeout_ms;
     ArvBuffer* buffer =
         arv_stream_timeout_pop_buffer(stream(), static_cast<guint64>(wait_ms * 1e3));
-    if (buffer == nullptr && hardware) {
+    if (buffer == nullptr && triggered_) {
       // No pulse on the trigger input is not a lost camera.
       return Status(StatusCode::kDeviceError,
-                    "GigE camera at " + address_ + ": no trigger pulse on " + options_.trigger +
-                        " within " + std::to_string(static_cast<int>(wait_ms)) + " ms");
+                    "GigE camera at " + address_ + ": no frame from a pulse on " +
+                        options_.trigger + " within " + std::to_string(static_cast<int>(wait_ms)) +
+                        " ms");
     }
     if (buffer == nullptr) {
       // Nothing at all: the camera may be gone. Open it again on the next grab.
@@ -212,6 +241,7 @@ class AravisCamera : public Camera {
  private:
   ArvCamera* camera() const { return link_.camera(); }
   ArvStream* stream() const { return link_.stream(); }
+  bool triggered_ = false;  // between StartTriggered and StopTriggered
 
   Status EnsureConnected() {
     if (camera() != nullptr) return Status::Ok();

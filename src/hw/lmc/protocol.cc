@@ -57,6 +57,18 @@ Status BoardOptions::Validate() const {
   if (poll_ms < 1 || poll_ms > 1000) return InvalidArgument("poll_ms must be in 1..1000");
   if (!(list_timeout_s > 0)) return InvalidArgument("list_timeout_s must be > 0");
   if (packets_before_start < 1) return InvalidArgument("packets_before_start must be >= 1");
+  if (trigger_port != 0) {
+    if ((trigger_port & (trigger_port - 1)) != 0) {
+      return InvalidArgument("trigger_port must be one output bit (0x0001..0x8000), or 0: none");
+    }
+    if ((trigger_port & (pointer_port | list_ports)) != 0) {
+      return InvalidArgument("trigger_port must be a bit of its own, not the pointer's "
+                             "(pointer_port) or a marking list's (list_ports)");
+    }
+    if (!(trigger_pulse_us >= 10 && trigger_pulse_us <= 10000)) {
+      return InvalidArgument("trigger_pulse_us must be in [10, 10000]");
+    }
+  }
   return Status::Ok();
 }
 
@@ -83,6 +95,34 @@ std::array<double, 2> FromUnits(uint16_t u, uint16_t v, const BoardOptions& o) {
   double a = (u - 32768.0) / scale, b = (v - 32768.0) / scale;
   if (o.swap_xy) std::swap(a, b);
   return {o.flip_x ? -a : a, o.flip_y ? -b : b};
+}
+
+// One JumpTo or MarkTo to `p` (galvo frame, mm) from `*position`, preceded by the Z DA word
+// when the focus changes. Errors: out_of_range (outside the field or the focus range, z on a
+// head without focus).
+static Status AppendPoint(const Eigen::Vector3d& p, bool mark, const BoardOptions& o,
+                          std::array<uint16_t, 2>* position, uint16_t* z_word,
+                          std::vector<Command>* out) {
+  INSITU_ASSIGN_OR_RETURN(const auto units, ToUnits(p.x(), p.y(), o));
+  if (o.focus == Focus::kNone) {
+    if (p.z() != 0.0) {
+      return OutOfRange("z = " + std::to_string(p.z()) +
+                        " mm, but this LMC head has no focus shifter (focus: none)");
+    }
+  } else {
+    if (std::abs(p.z()) > o.focus_range_mm) {
+      return OutOfRange("z = " + std::to_string(p.z()) + " mm is outside the focus range +-" +
+                        std::to_string(o.focus_range_mm) + " mm");
+    }
+    const auto z = static_cast<uint16_t>(std::floor(32768.0 + p.z() * o.z_units_per_mm));
+    if (z != *z_word) {
+      out->push_back({kSetDaZWord, z, 0, 0, 0, 0});
+      *z_word = z;
+    }
+  }
+  out->push_back({mark ? kMarkTo : kJumpTo, units[0], units[1], 0, Distance(*position, units), 0});
+  *position = units;
+  return Status::Ok();
 }
 
 Result<std::vector<Command>> EncodeList(const GalvoList& list, const BoardOptions& o,
@@ -123,27 +163,8 @@ Result<std::vector<Command>> EncodeList(const GalvoList& list, const BoardOption
   const auto& entries = list.entries;
   for (size_t i = 0; i < entries.size(); ++i) {
     const GalvoListEntry& e = entries[i];
-    const Eigen::Vector3d& p = e.to_in_galvo;
-    INSITU_ASSIGN_OR_RETURN(const auto units, ToUnits(p.x(), p.y(), o));
-    if (o.focus == Focus::kNone) {
-      if (p.z() != 0.0) {
-        return OutOfRange("z = " + std::to_string(p.z()) +
-                          " mm, but this LMC head has no focus shifter (focus: none)");
-      }
-    } else {
-      if (std::abs(p.z()) > o.focus_range_mm) {
-        return OutOfRange("z = " + std::to_string(p.z()) + " mm is outside the focus range +-" +
-                          std::to_string(o.focus_range_mm) + " mm");
-      }
-      const auto z = static_cast<uint16_t>(std::floor(32768.0 + p.z() * o.z_units_per_mm));
-      if (z != *z_word) {
-        out.push_back({kSetDaZWord, z, 0, 0, 0, 0});
-        *z_word = z;
-      }
-    }
     const bool mark = e.kind == GalvoListEntry::Kind::kMark;
-    out.push_back({mark ? kMarkTo : kJumpTo, units[0], units[1], 0, Distance(*position, units), 0});
-    *position = units;
+    INSITU_RETURN_IF_ERROR(AppendPoint(e.to_in_galvo, mark, o, position, z_word, &out));
     if (!mark && list.jump_delay_us > 0) out.push_back(Delay(kJumpDelay, list.jump_delay_us));
     const bool sequence_ends =
         mark && (i + 1 == entries.size() || entries[i + 1].kind != GalvoListEntry::Kind::kMark);
@@ -152,6 +173,52 @@ Result<std::vector<Command>> EncodeList(const GalvoList& list, const BoardOption
           {kDelayTime,
            static_cast<uint16_t>(std::min(std::round(list.mark_delay_us / 10.0), 65535.0)), 0, 0, 0,
            0});
+    }
+  }
+  return out;
+}
+
+Result<std::vector<Command>> EncodeTriggeredSweep(const TriggeredSweep& sweep,
+                                                  const BoardOptions& o,
+                                                  std::array<uint16_t, 2>* position,
+                                                  uint16_t* z_word) {
+  INSITU_RETURN_IF_ERROR(sweep.Validate());
+  if (o.trigger_port == 0) {
+    return FailedPrecondition("the board has no output wired to the camera (trigger_port)");
+  }
+  const double settle_us = sweep.settle_s * 1e6;
+  if (settle_us > 65535.0) {
+    return OutOfRange("settle " + std::to_string(sweep.settle_s * 1e3) +
+                      " ms is longer than the board's jump delay (65.535 ms)");
+  }
+  // The light list's parameters: the pointer port on, the laser off, the sweep's speed.
+  GalvoList light;
+  light.jump_speed_mm_per_s = sweep.speed_mm_per_s;
+  light.laser_power = 0.0;
+  BoardOptions lo = o;
+  lo.list_ports = o.pointer_port;
+  lo.open_mo_delay_us = 0.0;
+  INSITU_ASSIGN_OR_RETURN(std::vector<Command> out, EncodeList(light, lo, position, z_word));
+  const auto pulse = static_cast<uint16_t>(std::round(o.trigger_pulse_us / 10.0));
+  for (const auto& [from, to] : sweep.lines) {
+    INSITU_RETURN_IF_ERROR(AppendPoint(from, /*mark=*/false, o, position, z_word, &out));
+    if (settle_us > 0) out.push_back(Delay(kJumpDelay, settle_us));
+    out.push_back({kWritePortList, static_cast<uint16_t>(o.pointer_port | o.trigger_port), 0, 0,
+                   0, 0});
+    out.push_back({kDelayTime, pulse, 0, 0, 0, 0});
+    out.push_back({kWritePortList, o.pointer_port, 0, 0, 0, 0});
+    // Back and forth along the line for the dwell: the exposure sees whole passes.
+    const double length = (to - from).norm();
+    const int passes = length > 1e-6 ? std::max(1, static_cast<int>(std::ceil(
+                                                       sweep.dwell_s * sweep.speed_mm_per_s / length)))
+                                     : 0;
+    for (int k = 1; k <= passes; ++k) {
+      INSITU_RETURN_IF_ERROR(AppendPoint(k % 2 ? to : from, false, o, position, z_word, &out));
+    }
+    if (passes == 0) {  // a point: stay on it
+      out.push_back({kDelayTime,
+                     static_cast<uint16_t>(std::min(std::round(sweep.dwell_s * 1e5), 65535.0)), 0,
+                     0, 0, 0});
     }
   }
   return out;

@@ -28,6 +28,7 @@ class BoardScanner : public Scanner {
     i.field_half_size_mm = 0.5 * options_.lens_mm * (1.0 - 2.0 / 65536.0);
     i.focus_range_mm = options_.focus == Focus::kDaZWord ? options_.focus_range_mm : 0.0;
     i.clock_us = 10.0;
+    i.trigger_output = options_.trigger_port != 0;
     return i;
   }
 
@@ -95,30 +96,29 @@ class BoardScanner : public Scanner {
     // From here on every way out leaves the board stopped and the oscillator closed.
     z_word_ = 0;  // unknown until the list has run
     if (marks) INSITU_RETURN_IF_ERROR(Single(kFiberSetMo, 1).status());
-    const auto start = std::chrono::steady_clock::now();
-    const Status sent = SendList(commands, control);
-    if (!sent.ok()) return Stopped(sent);
-    for (;;) {
-      if (control.abort != nullptr && control.abort->load()) {
-        return Stopped(Status(StatusCode::kCancelled,
-                              "list aborted: StopExecute sent, oscillator closed, laser output "
-                              "disabled"));
-      }
-      auto status = Single(kGetVersion);
-      if (!status.ok()) return Stopped(status.status().Prefixed("while the list ran"));
-      if (!(*status & kStatusBusy)) break;
-      const double elapsed =
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      if (elapsed > options_.list_timeout_s) {
-        return Stopped(Status(StatusCode::kDeviceError,
-                              "the board was still busy after " +
-                                  std::to_string(options_.list_timeout_s) + " s"));
-      }
-      // The board tells no progress: the list's own time estimate stands in, short of 1.
-      if (control.progress && estimate_s > 0) control.progress(std::min(0.99, elapsed / estimate_s));
-      std::this_thread::sleep_for(std::chrono::milliseconds(options_.poll_ms));
-    }
+    INSITU_RETURN_IF_ERROR(Run(commands, control, estimate_s));
     if (marks) INSITU_RETURN_IF_ERROR(Single(kFiberSetMo, 0).status());
+    position_ = position;
+    z_word_ = z_word;
+    if (control.progress) control.progress(1.0);
+    return Status::Ok();
+  }
+
+  // One list on the board: the pointer on, the trigger output pulsed once per line.
+  Status RunSweep(const TriggeredSweep& sweep, const ListControl& control) override {
+    INSITU_RETURN_IF_ERROR(StopPointer());
+    std::array<uint16_t, 2> position = position_;
+    uint16_t z_word = z_word_;
+    INSITU_ASSIGN_OR_RETURN(auto commands,
+                            EncodeTriggeredSweep(sweep, options_, &position, &z_word));
+    z_word_ = 0;
+    const double estimate_s =
+        static_cast<double>(sweep.lines.size()) * (sweep.settle_s + sweep.dwell_s);
+    const Status ran = Run(commands, control, estimate_s);
+    // The list leaves the pointer port on: off with the sweep, however it ended.
+    const Status off = Single(kWritePort, 0).status();
+    INSITU_RETURN_IF_ERROR(ran);
+    INSITU_RETURN_IF_ERROR(off);
     position_ = position;
     z_word_ = z_word;
     if (control.progress) control.progress(1.0);
@@ -133,6 +133,35 @@ class BoardScanner : public Scanner {
     uint8_t reply[kReplyBytes];
     INSITU_RETURN_IF_ERROR(transport_->Read(reply, sizeof reply));
     return static_cast<uint16_t>(reply[6] | (reply[7] << 8));
+  }
+
+  // Streams `commands` and polls until the board is no longer busy; the list's time estimate
+  // stands in for progress. Every failure and control.abort leave the board stopped (Abort).
+  Status Run(const std::vector<Command>& commands, const ListControl& control,
+             double estimate_s) {
+    const auto start = std::chrono::steady_clock::now();
+    const Status sent = SendList(commands, control);
+    if (!sent.ok()) return Stopped(sent);
+    for (;;) {
+      if (control.abort != nullptr && control.abort->load()) {
+        return Stopped(Status(StatusCode::kCancelled,
+                              "list aborted: StopExecute sent, oscillator closed, laser output "
+                              "disabled"));
+      }
+      auto status = Single(kGetVersion);
+      if (!status.ok()) return Stopped(status.status().Prefixed("while the list ran"));
+      if (!(*status & kStatusBusy)) return Status::Ok();
+      const double elapsed =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      if (elapsed > options_.list_timeout_s) {
+        return Stopped(Status(StatusCode::kDeviceError,
+                              "the board was still busy after " +
+                                  std::to_string(options_.list_timeout_s) + " s"));
+      }
+      // The board tells no progress: the list's own time estimate stands in, short of 1.
+      if (control.progress && estimate_s > 0) control.progress(std::min(0.99, elapsed / estimate_s));
+      std::this_thread::sleep_for(std::chrono::milliseconds(options_.poll_ms));
+    }
   }
 
   Status Goto(const Eigen::Vector3d& p) {

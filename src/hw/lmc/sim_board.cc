@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <atomic>
 #include <deque>
 #include <mutex>
@@ -20,9 +21,20 @@ struct SimBoard::Impl {
   std::atomic<bool> running{false};
   std::atomic<bool> abort{false};
   SimBoardLog log;
+  uint16_t ports_now = 0;  // the runner's port word during a triggered sweep
   // The list parameters the board holds (they persist from list to list, as on the board).
   sim::MarkingParams params;
   double z_mm = 0.0;
+  // A triggered sweep as the runner executes it, packet by packet: where the mirrors are,
+  // whether the trigger rose since the line's start, and the list time not yet run on the
+  // world's clock (a line's sweep starts only once its far end is known).
+  struct Sweep {
+    bool active = false;
+    bool pulse_pending = false;
+    Eigen::Vector3d at = Eigen::Vector3d::Zero();
+    double pending_s = 0.0;   // list time since the world's clock last moved
+    double to_pulse_s = 0.0;  // of it, before the pulse
+  } sweep;
 
   void Reply(uint16_t status) {
     std::array<uint8_t, kReplyBytes> r{};
@@ -54,19 +66,85 @@ struct SimBoard::Impl {
           continue;
         }
         running = false;
+        if (sweep.active) EndSweep();
         return;
       }
     });
   }
 
-  // A list that marks nothing and turns the pointer port on.
+  // A list that marks nothing and turns the pointer port on (not a triggered sweep: that one
+  // runs on the runner, on the head's clock).
   bool IsLightList(const std::vector<Command>& commands) const {
     bool pointer = false;
     for (const Command& c : commands) {
-      if (c[0] == kMarkTo) return false;
+      if (c[0] == kMarkTo || Rises(c)) return false;
       if (c[0] == kWritePortList) pointer = (c[1] & options.pointer_port) != 0;
     }
     return pointer;
+  }
+
+  // A list port write that raises the camera's trigger output.
+  bool Rises(const Command& c) const {
+    return c[0] == kWritePortList && options.trigger_port != 0 && (c[1] & options.trigger_port);
+  }
+
+  // The runner's part of a triggered sweep. Each line: jump to its start and settle, the
+  // trigger rises (the camera exposes from there), then passes back and forth: the world's
+  // pointer sweeps the line between its start and the first pass's end, and the pulse comes
+  // after the jump and the settle on the world's clock.
+  void ExecuteSweep(const std::vector<Command>& commands) {
+    if (!sweep.active) {
+      sweep.active = true;
+      world->SetHeadRunning(true);
+    }
+    for (const Command& c : commands) {
+      if (abort) return;
+      switch (c[0]) {
+        case kJumpSpeed:
+          params.jump_speed_mm_per_s = Mm(c[1]);
+          break;
+        case kJumpDelay:
+          sweep.pending_s += c[1] * 1e-6;
+          break;
+        case kDelayTime:
+          sweep.pending_s += c[1] * 10e-6;
+          break;
+        case kSetDaZWord:
+          z_mm = options.z_units_per_mm > 0 ? (c[1] - 32768.0) / options.z_units_per_mm : 0.0;
+          break;
+        case kWritePortList:
+          if (Rises(c) && !(ports_now & options.trigger_port)) {
+            sweep.pulse_pending = true;
+            sweep.to_pulse_s = sweep.pending_s;
+          }
+          ports_now = c[1];
+          break;
+        case kJumpTo:
+        case kMarkTo: {  // the laser is off in a light list: a mark only moves the mirrors
+          const auto xy = FromUnits(c[1], c[2], options);
+          const Eigen::Vector3d q(xy[0], xy[1], z_mm);
+          if (sweep.pulse_pending) {
+            (void)world->StartPointerLine(sweep.at, q, params.jump_speed_mm_per_s);
+            world->Advance(sweep.to_pulse_s);
+            world->TriggerPulse();
+            sweep.pending_s -= sweep.to_pulse_s;
+            sweep.pulse_pending = false;
+          }
+          sweep.pending_s += (q - sweep.at).norm() / params.jump_speed_mm_per_s;
+          sweep.at = q;
+          break;
+        }
+        default:
+          break;
+      }
+    }
+  }
+
+  // The sweep's list has run out: its last time on the clock, the head's clock handed back.
+  void EndSweep() {
+    world->Advance(sweep.pending_s);
+    world->SetHeadRunning(false);
+    sweep = Sweep{};
   }
 
   double Mm(uint16_t speed_word) const { return speed_word / units_per_ms_per_mm_s; }
@@ -77,6 +155,15 @@ struct SimBoard::Impl {
     std::unique_lock<std::mutex> shared(mutex, std::defer_lock);
     if (!locked) shared.lock();
     uint16_t ports = log.ports;
+    if (!locked && (sweep.active || std::any_of(commands.begin(), commands.end(),
+                                                [&](const Command& c) { return Rises(c); }))) {
+      ports_now = ports;
+      shared.unlock();
+      ExecuteSweep(commands);
+      shared.lock();
+      log.ports = ports_now;
+      return;
+    }
     // The laser emits only with its output enabled and the master oscillator open.
     const bool laser_enabled = log.laser_enabled && log.mo_open;
     if (!locked) shared.unlock();

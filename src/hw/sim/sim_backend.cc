@@ -11,7 +11,9 @@ class SimScanner : public Scanner {
 
   ScannerInfo info() const override {
     const auto& sh = world_->options().scan_head;
-    return {"simulated 3D scan head", sh.field_half_size_mm, sh.focus_range_mm, sh.clock_us};
+    // Its trigger output is there; whether a camera listens is the camera's (head_trigger).
+    return {"simulated 3D scan head", sh.field_half_size_mm, sh.focus_range_mm, sh.clock_us,
+            /*trigger_output=*/true};
   }
   Status StartPointerLine(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
                           double speed_mm_per_s) override {
@@ -53,6 +55,34 @@ class SimScanner : public Scanner {
     return world_->ExecuteMarkingList(moves, params, control.abort, control.progress);
   }
 
+  // Line by line on the head's clock: start the sweep, settle, pulse, dwell.
+  Status RunSweep(const TriggeredSweep& sweep, const ListControl& control) override {
+    struct Running {  // the pointer off and the clock handed back, whatever happens
+      sim::SimWorld* world;
+      ~Running() {
+        world->StopPointer();
+        world->SetHeadRunning(false);
+      }
+    } running{world_.get()};
+    world_->SetHeadRunning(true);  // first: a camera waiting for a pulse learns of a fault
+    INSITU_RETURN_IF_ERROR(InjectedFault());
+    const size_t n = sweep.lines.size();
+    for (size_t i = 0; i < n; ++i) {
+      if (control.abort != nullptr && control.abort->load()) {
+        return Status(StatusCode::kCancelled,
+                      "sweep aborted before line " + std::to_string(i) + ", the pointer is off");
+      }
+      INSITU_RETURN_IF_ERROR(
+          world_->StartPointerLine(sweep.lines[i].first, sweep.lines[i].second,
+                                   sweep.speed_mm_per_s));
+      world_->Advance(sweep.settle_s);
+      world_->TriggerPulse();
+      world_->Advance(sweep.dwell_s);
+      if (control.progress) control.progress(static_cast<double>(i + 1) / n);
+    }
+    return Status::Ok();
+  }
+
  private:
   // The injected scanner error (world faults): the head stops, the laser is off.
   Status InjectedFault() {
@@ -81,11 +111,24 @@ class SimCamera : public Camera {
   Status SetExposure(double exposure_us) override { return world_->SetExposure(exposure_us); }
   Status SetGain(double gain_db) override { return world_->SetGain(gain_db); }
   Status SetBinning(int binning) override { return world_->SetBinning(binning); }
-  Status SetRegion(int first_row, int rows) override {
-    return world_->SetRegion(first_row, rows);
+  bool head_triggered() const override { return world_->options().camera.head_trigger; }
+  Status StartTriggered() override {
+    if (!head_triggered()) return Camera::StartTriggered();
+    world_->ArmTrigger(true);
+    triggered_ = true;
+    return Status::Ok();
   }
+  Status StopTriggered() override {
+    world_->ArmTrigger(false);
+    triggered_ = false;
+    return Status::Ok();
+  }
+  double max_frame_rate_hz() const override { return world_->MaxFrameRateHz(); }
 
  protected:
+  Status ApplyRegion(int first_row, int rows) override {
+    return world_->SetRegion(first_row, rows);
+  }
   // Injected faults as a GigE camera shows them: no frame at all (a timeout), a frame that
   // lost packets on the wire (the stream reports it incomplete), or one whose payload does
   // not match its header (delivered: Camera::Grab's check catches it).
@@ -96,7 +139,9 @@ class SimCamera : public Camera {
       world_->Advance(1.0);  // the timeout's wait
       return Status(StatusCode::kDeviceError, "camera timeout: no frame within 1000 ms (injected)");
     }
-    INSITU_ASSIGN_OR_RETURN(Frame frame, world_->Grab());
+    // Triggered: the frame the head's pulse exposed. 60 s of this computer's time: the
+    // simulator renders a frame in well under one, even on a loaded machine.
+    INSITU_ASSIGN_OR_RETURN(Frame frame, triggered_ ? world_->TakeTriggered(60.0) : world_->Grab());
     if (n == faults.camera_drop_frame_at) {
       return Status(StatusCode::kDeviceError,
                     "camera frame " + std::to_string(frame.sequence) +
@@ -111,9 +156,9 @@ class SimCamera : public Camera {
  private:
   std::shared_ptr<sim::SimWorld> world_;
   int frames_ = 0;
+  bool triggered_ = false;
 };
 
-// The scan head's coaxial camera: sees around wherever the head points.
 class SimCoaxialCamera : public Camera {
  public:
   explicit SimCoaxialCamera(std::shared_ptr<sim::SimWorld> world)
