@@ -149,9 +149,14 @@ std::optional<double> HeightLookup::Height(double line_x_mm, double u, double v)
   // across the neighbouring offsets (cubic in x); then the height at which that line's stripe
   // passes through v at this column (cubic in v). Both stay inside the calibrated domain.
   const double spacing = (xs_.back() - xs_.front()) / static_cast<double>(xs_.size() - 1);
-  std::vector<double> vs(zs_.size());
+  // Scratch reused by each thread: a scan asks once per stripe point, and allocating these
+  // per call took a fifth of the scan's per-frame time (perf on bench/scan_pipeline_bench).
+  thread_local std::vector<double> vs, nx, nv, sv, sz;
+  thread_local std::vector<size_t> order;
+  vs.resize(zs_.size());
   for (size_t j = 0; j < zs_.size(); ++j) {
-    std::vector<double> nx, nv;
+    nx.clear();
+    nv.clear();
     for (size_t i = 0; i < xs_.size(); ++i) {
       if (std::abs(xs_[i] - line_x_mm) > 2.01 * spacing) continue;
       const StripeCurve& c = curves_[i * zs_.size() + j];
@@ -164,10 +169,11 @@ std::optional<double> HeightLookup::Height(double line_x_mm, double u, double v)
     vs[j] = *vj;
   }
   // v moves monotonically with height; interpolate z(v) with v as the abscissa.
-  std::vector<size_t> order(zs_.size());
+  order.resize(zs_.size());
   for (size_t j = 0; j < order.size(); ++j) order[j] = j;
   std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return vs[a] < vs[b]; });
-  std::vector<double> sv, sz;
+  sv.clear();
+  sz.clear();
   for (size_t j : order) {
     sv.push_back(vs[j]);
     sz.push_back(zs_[j]);

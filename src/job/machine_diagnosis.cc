@@ -477,6 +477,9 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
                            spec.scan.scan.line_count());
     ScanOptions pass_scan = spec.scan.scan;
     if (spec.refocus) pass_scan.focus_z_mm += z;
+    // The gauge rides on the stage: the heights its stripe can come from move with it.
+    pass_scan.height_range_mm[0] += z;
+    pass_scan.height_range_mm[1] += z;
     auto scanned = RunScan(
         machine, pass_scan, spec.scan.extraction, cal,
         [&](int done, int) { progress.Update(done); }, options.cancel);

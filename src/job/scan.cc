@@ -241,21 +241,34 @@ class FrameQueue {
 };
 
 // The band of full-sensor rows where the stripe of any line can lie for a surface within the
-// height range: the lines' points at the range's heights projected through the calibration.
-// The margin: the widest stripe the extraction accepts, the median's and the background's
-// reach (3 rows beyond the run), and the pointer's landing off the galvo point on a real head
-// (a few 0.1 mm, ~4 px), in full-sensor pixels.
+// height range: for each line, the points of its light plane (the plane the scan triangulates
+// with, leaning away from the vertical as |x| grows: ~0.2 mm per mm of height at x = 60 mm)
+// at the range's heights along the line, projected through the calibration. The margin: the
+// widest stripe the extraction accepts, the median's and the background's reach (3 rows
+// beyond the run), and the pointer's landing off the plane on a real head (a few 0.1 mm,
+// ~4 px), in full-sensor pixels.
 std::pair<int, int> StripeBand(const ScanOptions& o, const vision::StripeOptions& stripe,
                                const calib::CalibrationSet& cal) {
   const calib::CameraIntrinsics& cam = cal.camera;
+  const Eigen::Isometry3d& camera_from_galvo = cal.galvo.camera_from_galvo;
+  const double z_reach = std::max(std::abs(o.height_range_mm[0]), std::abs(o.height_range_mm[1]));
   double lo = std::numeric_limits<double>::infinity(), hi = -lo;
   const int lines = o.line_count();
   for (int i = 0; i < lines; ++i) {
+    const Eigen::Vector3d from(o.line_x(i), o.y_start_mm, o.focus_z_mm);
+    const Eigen::Vector3d to(o.line_x(i), o.y_end_mm, o.focus_z_mm);
+    const Eigen::Vector4d plane =
+        geometry::LineLightPlane(cal, from, to, z_reach, camera_from_galvo).coeffs;
+    // The plane in the galvo frame: n . p + d = 0 with p = (x, y, z).
+    const Eigen::Vector3d n = camera_from_galvo.linear().transpose() * plane.head<3>();
+    const double d = plane.head<3>().dot(camera_from_galvo.translation()) + plane(3);
     for (int k = 0; k <= 20; ++k) {
       const double y = o.y_start_mm + (o.y_end_mm - o.y_start_mm) * k / 20.0;
       for (int j = 0; j <= 4; ++j) {
         const double z = o.height_range_mm[0] + (o.height_range_mm[1] - o.height_range_mm[0]) * j / 4.0;
-        const Eigen::Vector3d p = cal.galvo.camera_from_galvo * Eigen::Vector3d(o.line_x(i), y, z);
+        // Where the sheet is at (y, z); a plane parallel to x (none in practice): the line's x.
+        const double x = std::abs(n.x()) > 1e-9 ? -(n.y() * y + n.z() * z + d) / n.x() : o.line_x(i);
+        const Eigen::Vector3d p = camera_from_galvo * Eigen::Vector3d(x, y, z);
         if (!(p.z() > 0)) continue;
         const Eigen::Vector2d px = cam.Project(p);
         if (!(px.x() >= 0 && px.x() < cam.width_px)) continue;

@@ -232,6 +232,31 @@ TEST(ScanSpeed, TheBandMeasuresWhatTheWholeSensorDoes) {
               runs[0].cloud.size(), runs[0].stats.machine_time_s);
 }
 
+// Far out in the field the light sheet leans (its apex is the mirrors, 300 mm up): at
+// x = 55 mm a surface 15 mm up is lit ~2.7 mm further in than its x. The band follows the
+// plane the scan triangulates with, so the gauge moved out there loses no point to it.
+TEST(ScanSpeed, TheBandFollowsTheLeaningSheetAtTheFieldsEdge) {
+  sim::WorldOptions world;
+  world.part.position_mm = {50.0, 0.0};
+  job::ScanOptions o = FastScan();
+  o.x_start_mm = 40.5;
+  o.x_end_mm = 59.5;
+  o.height_range_mm = {-1.0, 16.0};  // the gauge's 15 mm top and the plate
+  size_t points[2];
+  for (int k = 0; k < 2; ++k) {
+    hw::Machine machine = hw::MakeSimMachine(std::make_shared<sim::SimWorld>(world));
+    o.region = k == 1;
+    auto out = Scan(machine, world, o);
+    ASSERT_TRUE(out.ok()) << out.status().ToString();
+    points[k] = out->cloud.size();
+    if (k == 1) {
+      EXPECT_LT(out->stats.region_rows, world.camera.height_px / 2);
+    }
+  }
+  EXPECT_GT(points[0], 5000u);
+  EXPECT_EQ(points[1], points[0]);
+}
+
 // A 12-bit camera sees the same light: the scan's gray levels are 8-bit ones scaled to the
 // frame (StripeOptions::ForBitDepth), so the same columns pass and the heights agree.
 TEST(ScanSpeed, ATwelveBitCameraMeasuresWhatAnEightBitOneDoes) {
