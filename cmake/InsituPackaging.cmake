@@ -45,7 +45,9 @@ set(insitu_data ${CMAKE_INSTALL_DATADIR}/insitu)
 install(DIRECTORY config/jobs config/worlds config/patterns DESTINATION ${insitu_data}/config)
 install(DIRECTORY calib data DESTINATION ${insitu_data})
 
-install(FILES README.md DESTINATION ${CMAKE_INSTALL_DOCDIR})
+install(FILES README.md LICENSE DESTINATION ${CMAKE_INSTALL_DOCDIR})
+# The Debian copyright file (machine-readable), where dpkg and lintian look for it.
+install(FILES packaging/copyright DESTINATION ${CMAKE_INSTALL_DOCDIR})
 install(DIRECTORY docs/ DESTINATION ${CMAKE_INSTALL_DOCDIR}/docs
         PATTERN "__pycache__" EXCLUDE
         PATTERN "insitu_client.py" PERMISSIONS OWNER_READ OWNER_WRITE OWNER_EXECUTE

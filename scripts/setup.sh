@@ -10,6 +10,7 @@ PACKAGES=(
   libceres-dev libusb-1.0-0-dev
   libyaml-cpp-dev nlohmann-json3-dev libspdlog-dev libcli11-dev libasio-dev
   libqrencode-dev libdmtx-dev libzbar-dev libtinyxml2-dev
+  libfreetype-dev libfontconfig-dev fonts-dejavu-core hershey-fonts-data
   libgtest-dev libgmock-dev libbenchmark-dev
   python3
 )

@@ -30,6 +30,7 @@
 #include "insitu/job/cor_reading.h"
 #include "insitu/job/diagnose_job.h"
 #include "insitu/job/job_file.h"
+#include "insitu/job/pattern_inspect.h"
 #include "insitu/job/runner.h"
 #include "insitu/pattern/correction_table.h"
 
@@ -140,6 +141,29 @@ int Diagnose(const std::string& csv, const std::string& out_dir) {
   const std::filesystem::path dir(out);
   std::printf("report: %s\nresiduals: %s\nextension: %s\n", (dir / "report.json").c_str(),
               (dir / "residuals.png").c_str(), (dir / "extension.yaml").c_str());
+  return 0;
+}
+
+// What a drawing will mark, before anything moves: extents, units, what was drawn and
+// skipped, the closed areas, and preview.png with the hatch at scale.
+int PatternInspect(const std::string& file, const std::string& out_dir,
+                   insitu::job::PatternInspectOptions options) {
+  const std::filesystem::path dir =
+      out_dir.empty() ? "insitu-out/pattern-" + std::filesystem::path(file).stem().string()
+                      : out_dir;
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) {
+    std::fprintf(stderr, "insitu: cannot create %s: %s\n", dir.c_str(), ec.message().c_str());
+    return 1;
+  }
+  options.preview_path = (dir / "preview.png").string();
+  auto in = insitu::job::InspectPattern(file, options);
+  if (!in.ok()) {
+    std::fprintf(stderr, "insitu: %s\n", in.status().message().c_str());
+    return ExitCodeFor(in.status());
+  }
+  std::printf("%s", insitu::job::FormatInspection(file, *in).c_str());
   return 0;
 }
 
@@ -287,6 +311,24 @@ int main(int argc, char** argv) {
                          "'# reading:' comment (cor import writes it), else dx-dy,x-major,++");
   cor_export->add_option("--out", cor_file, ".cor file to write")->required();
 
+  CLI::App* pattern = app.add_subcommand("pattern", "vector drawings (SVG, DXF, HPGL) to mark");
+  pattern->require_subcommand(1);
+  CLI::App* inspect = pattern->add_subcommand(
+      "inspect", "what a drawing will mark: extents, units, entities drawn and skipped, closed "
+                 "areas, and preview.png with the hatch at scale");
+  std::string inspect_file, inspect_out;
+  insitu::job::PatternInspectOptions inspect_options;
+  inspect->add_option("file", inspect_file, ".svg, .dxf or .plt/.hpgl drawing")->required();
+  inspect->add_option("--out", inspect_out,
+                      "folder for preview.png (default insitu-out/pattern-<name>)");
+  inspect->add_option("--scale", inspect_options.scale, "as the mark job's placement.scale")
+      ->check(CLI::PositiveNumber);
+  inspect->add_option("--hatch-spacing", inspect_options.hatch_spacing_mm,
+                      "mm on the part, as the mark job's hatch.spacing_mm (default 0.04)")
+      ->check(CLI::PositiveNumber);
+  inspect->add_option("--hatch-angles", inspect_options.hatch_angles_deg,
+                      "degrees, as the mark job's hatch.angles_deg (default 0)");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -302,6 +344,7 @@ int main(int argc, char** argv) {
     return Run(job_path, out_dir, sets);
   }
   if (diagnose->parsed()) return Diagnose(csv_path, diag_out);
+  if (inspect->parsed()) return PatternInspect(inspect_file, inspect_out, inspect_options);
   if (cor_import->parsed()) return CorImport(cor_in, cor_out, import_reading);
   if (cor_export->parsed()) {
     return CorExport(table_in, lens_mm, cor_format, export_reading, cor_file);

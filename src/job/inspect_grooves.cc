@@ -124,12 +124,8 @@ void ReadGrooveSections(ConfigReader& r, const std::string& folder, GrooveJobSpe
 // The design's closed contours, in the workpiece frame (mm). Errors: the file's own, or a design
 // with no closed contour (grooves are inspected along closed contours).
 Result<std::vector<pattern::Polyline>> LoadContours(const GrooveJobSpec& s, int* open_paths) {
-  const std::string ext = fs::path(s.design_file).extension().string();
   Result<pattern::VectorPattern> vec =
-      ext == ".svg" || ext == ".SVG"   ? pattern::LoadSvg(s.design_file, s.design_tolerance_mm)
-      : ext == ".dxf" || ext == ".DXF" ? pattern::LoadDxf(s.design_file, s.design_tolerance_mm)
-                                       : Result<pattern::VectorPattern>(InvalidArgument(
-                                             s.design_file + ": a design is a .dxf or .svg file"));
+      pattern::LoadVectorFile(s.design_file, s.design_tolerance_mm);
   if (!vec.ok()) return vec.status();
   std::vector<pattern::Polyline> closed;
   *open_paths = 0;

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -16,6 +18,7 @@
 #include "insitu/pattern/mark_plan.h"
 #include "insitu/pattern/path_opt.h"
 #include "insitu/pattern/raster.h"
+#include "insitu/pattern/text.h"
 #include "insitu/pattern/vector.h"
 #include "job/head_list.h"
 #include "job/mark_verify.h"
@@ -27,7 +30,7 @@ namespace insitu::job {
 namespace {
 
 struct PatternSpec {
-  std::string kind;        // raster, qr, datamatrix, hpgl, svg, dxf
+  std::string kind;        // raster, qr, datamatrix, hpgl, svg, dxf, text
   std::string file;        // raster, hpgl, svg, dxf (resolved)
   std::string data;        // qr, datamatrix
   double pixel_mm = 0.05;  // raster pixel or code module
@@ -35,12 +38,17 @@ struct PatternSpec {
   bool invert = false;
   bool dither = false;  // raster: grey as a density of marked pixels
   std::string qr_level = "M";
+  std::string text;               // text: what to write ('\n' starts a line)
+  pattern::TextStyle text_style;  // text: font (outline or hershey:NAME), size, layout
 };
 
 // One pattern on the part: what, where, how it is filled.
 struct ItemSpec {
   PatternSpec pattern;
   pattern::Placement placement;
+  // placement.size_mm: the pattern scaled (uniformly) so its extents fit this width and
+  // height on the part; a 0 leaves that side free. Replaces placement.scale.
+  Eigen::Vector2d size_mm = Eigen::Vector2d::Zero();
   double hatch_spacing_mm = 0.04;
   std::vector<double> hatch_angles_deg{0.0};
   bool outline = true;  // vector patterns: mark the paths too
@@ -58,12 +66,16 @@ struct ItemSpec {
   std::string path_placement = "band";  // band: chords straddle the curve; curve: on it
 };
 
-// What path optimisation did to an item's outlines.
+// What path optimisation did to an item's outlines, and what its file held that was not
+// drawn (nothing is dropped silently: each kind is a warning and a metric).
 struct PathStats {
   int input_points = 0, mark_points = 0;
   double max_error_mm = 0.0;
   double jump_mm = 0.0,
          jump_file_mm = 0.0;  // outline jumps in travel and file order
+  int texts = 0;
+  std::map<std::string, int> skipped;  // by kind
+  std::vector<std::string> warnings;
 };
 
 struct MarkJobSpec {
@@ -84,10 +96,29 @@ struct MarkJobSpec {
 void ReadItem(ConfigReader& r, const std::string& folder, ItemSpec* s) {
   ConfigReader& p = r.Section("pattern");
   p.Require("kind");
-  p.ReadEnum("kind", &s->pattern.kind, {"raster", "qr", "datamatrix", "hpgl", "svg", "dxf"});
+  p.ReadEnum("kind", &s->pattern.kind,
+             {"raster", "qr", "datamatrix", "hpgl", "svg", "dxf", "text"});
   const bool from_file = s->pattern.kind == "raster" || s->pattern.kind == "hpgl" ||
                          s->pattern.kind == "svg" || s->pattern.kind == "dxf";
-  if (p.ok()) p.Require(from_file ? "file" : "data");
+  const bool text = s->pattern.kind == "text";
+  if (p.ok()) p.Require(from_file ? "file" : text ? "text" : "data");
+  if (text) {
+    pattern::TextStyle& t = s->pattern.text_style;
+    p.Read("text", &s->pattern.text);
+    p.Read("font", &t.font);
+    p.Read("height_mm", &t.height_mm);
+    p.Read("size_is_em", &t.size_is_em);
+    p.Read("letter_spacing_mm", &t.letter_spacing_mm);
+    p.Read("line_spacing", &t.line_spacing);
+    std::string align = "left";
+    p.ReadEnum("align", &align, {"left", "center", "right"});
+    t.align = align == "left"     ? pattern::TextAlign::kLeft
+              : align == "center" ? pattern::TextAlign::kCenter
+                                  : pattern::TextAlign::kRight;
+    p.Read("arc_radius_mm", &t.arc_radius_mm);
+    if (p.ok()) p.FailFromValidate(t.Validate());
+    if (p.ok() && s->pattern.text.empty()) p.Fail("text", "must not be empty");
+  }
   p.Read("file", &s->pattern.file);
   if (!s->pattern.file.empty()) s->pattern.file = ResolvePath(folder, s->pattern.file);
   p.Read("data", &s->pattern.data);
@@ -103,6 +134,14 @@ void ReadItem(ConfigReader& r, const std::string& folder, ItemSpec* s) {
   }
   ConfigReader& pl = r.Section("placement");
   pl.Read("scale", &s->placement.scale);
+  if (pl.Has("size_mm")) {
+    if (pl.Has("scale")) pl.Fail("size_mm", "give either scale or size_mm, not both");
+    pl.ReadArray("size_mm", s->size_mm.data(), 2);
+    if (pl.ok() && !(s->size_mm.minCoeff() >= 0 && s->size_mm.maxCoeff() > 0 &&
+                     s->size_mm.allFinite())) {
+      pl.Fail("size_mm", "must be [width, height] in mm, >= 0 each (0: that side free), not both 0");
+    }
+  }
   pl.Read("rotation_deg", &s->placement.rotation_deg);
   pl.ReadArray("offset_mm", s->placement.offset_mm.data(), 2);
   pl.ReadEnum("anchor", &s->anchor, {"origin", "centre"});
@@ -207,17 +246,47 @@ void ReadMarkSections(ConfigReader& r, const std::string& folder, MarkJobSpec* s
   if (v.ok()) v.FailFromValidate(vo.Validate());
 }
 
-// The pattern's segments in pattern mm (before placement).
-// Vector outlines go through path optimisation (seed 004) and into travel
-// order; *stats says what that did.
-Result<std::vector<pattern::Segment2>> PatternSegments(const ItemSpec& s, PathStats* stats) {
+// The uniform scale that fits extents `w` x `h` (mm, before placement) into size_mm (a 0
+// side is free). Errors: invalid_argument for a pattern with no extent along a side asked for.
+Result<double> FitScale(const Eigen::Vector2d& size_mm, double w, double h) {
+  double scale = std::numeric_limits<double>::infinity();
+  if (size_mm.x() > 0) {
+    if (!(w > 0)) return InvalidArgument("placement.size_mm: the pattern has no width to fit");
+    scale = std::min(scale, size_mm.x() / w);
+  }
+  if (size_mm.y() > 0) {
+    if (!(h > 0)) return InvalidArgument("placement.size_mm: the pattern has no height to fit");
+    scale = std::min(scale, size_mm.y() / h);
+  }
+  return scale;
+}
+
+// The item's vector pattern: its file, or its text laid out in a font.
+Result<pattern::VectorPattern> LoadVector(const PatternSpec& p) {
+  if (p.kind == "text") return pattern::RenderText(p.text, p.text_style);
+  if (p.kind == "svg") return pattern::LoadSvg(p.file);
+  if (p.kind == "dxf") return pattern::LoadDxf(p.file);
+  return pattern::LoadHpgl(p.file);
+}
+
+// The pattern's segments in pattern mm (before placement); with placement.size_mm the item's
+// placement.scale is set here, from the pattern's extents. Vector outlines go through path
+// optimisation (seed 004) and into travel order; *stats says what that did and what the file
+// held that was not drawn.
+Result<std::vector<pattern::Segment2>> PatternSegments(ItemSpec* item, PathStats* stats) {
   *stats = PathStats{};
+  ItemSpec& s = *item;
   const PatternSpec& p = s.pattern;
+  const bool fit = s.size_mm.maxCoeff() > 0;
   std::vector<pattern::Segment2> out;
   // The spacing is asked for on the part: hatch in pattern units, before the
   // placement scales.
-  const double spacing = s.hatch_spacing_mm / s.placement.scale;
   auto hatch_mask = [&](const pattern::Mask& mask) -> Status {
+    if (fit) {
+      INSITU_ASSIGN_OR_RETURN(s.placement.scale, FitScale(s.size_mm, mask.width * p.pixel_mm,
+                                                          mask.height * p.pixel_mm));
+    }
+    const double spacing = s.hatch_spacing_mm / s.placement.scale;
     for (double angle : s.hatch_angles_deg) {
       INSITU_ASSIGN_OR_RETURN(auto lines, pattern::HatchMask(mask, p.pixel_mm, spacing, angle));
       out.insert(out.end(), lines.begin(), lines.end());
@@ -235,9 +304,23 @@ Result<std::vector<pattern::Segment2>> PatternSegments(const ItemSpec& s, PathSt
     INSITU_ASSIGN_OR_RETURN(auto mask, pattern::DataMatrixMask(p.data));
     INSITU_RETURN_IF_ERROR(hatch_mask(mask));
   } else {
-    INSITU_ASSIGN_OR_RETURN(auto vec, p.kind == "svg"   ? pattern::LoadSvg(p.file)
-                                      : p.kind == "dxf" ? pattern::LoadDxf(p.file)
-                                                        : pattern::LoadHpgl(p.file));
+    INSITU_ASSIGN_OR_RETURN(pattern::VectorPattern vec, LoadVector(p));
+    stats->texts = vec.texts;
+    stats->skipped = vec.skipped;
+    stats->warnings = vec.warnings;
+    if (fit) {
+      Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
+      Eigen::Vector2d hi = -lo;
+      for (const auto& path : vec.paths) {
+        for (const Eigen::Vector2d& q : path.points) {
+          lo = lo.cwiseMin(q);
+          hi = hi.cwiseMax(q);
+        }
+      }
+      INSITU_ASSIGN_OR_RETURN(s.placement.scale,
+                              FitScale(s.size_mm, hi.x() - lo.x(), hi.y() - lo.y()));
+    }
+    const double spacing = s.hatch_spacing_mm / s.placement.scale;
     bool closed = false;
     for (const auto& path : vec.paths) closed |= path.closed;
     if (closed) {
@@ -290,15 +373,19 @@ Result<Patterns> LoadPatterns(const MarkJobSpec& mark, const std::string& job_pa
     const std::string where =
         mark.items.size() > 1 ? ": items[" + std::to_string(i) + "].pattern" : ": pattern";
     PathStats st;
-    auto segments = PatternSegments(mark.items[i], &st);
+    ItemSpec item = mark.items[i];  // its placement.scale set by size_mm
+    auto segments = PatternSegments(&item, &st);
+    if (!segments.ok()) return segments.status().Prefixed(job_path + where);
     paths.input_points += st.input_points;
     paths.mark_points += st.mark_points;
     paths.max_error_mm = std::max(paths.max_error_mm, st.max_error_mm);
-    paths.jump_mm += st.jump_mm * mark.items[i].placement.scale;
-    paths.jump_file_mm += st.jump_file_mm * mark.items[i].placement.scale;
-    if (!segments.ok()) return segments.status().Prefixed(job_path + where);
+    paths.jump_mm += st.jump_mm * item.placement.scale;
+    paths.jump_file_mm += st.jump_file_mm * item.placement.scale;
+    paths.texts += st.texts;
+    for (const auto& [kind, n] : st.skipped) paths.skipped[kind] += n;
+    for (const std::string& w : st.warnings) paths.warnings.push_back(where.substr(2) + ": " + w);
     if (segments->empty()) return InvalidArgument(job_path + where + ": nothing to mark");
-    if (mark.items[i].anchor == "centre") {
+    if (item.anchor == "centre") {
       Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e300), hi = -lo;
       for (const auto& sg : *segments) {
         lo = lo.cwiseMin(sg.a.cwiseMin(sg.b));
@@ -307,7 +394,7 @@ Result<Patterns> LoadPatterns(const MarkJobSpec& mark, const std::string& job_pa
       const Eigen::Vector2d mid = 0.5 * (lo + hi);
       for (auto& sg : *segments) sg.a -= mid, sg.b -= mid;
     }
-    out.placed_items.push_back(pattern::Place(*segments, mark.items[i].placement));
+    out.placed_items.push_back(pattern::Place(*segments, item.placement));
   }
   return out;
 }
@@ -396,6 +483,7 @@ Result<ScanOutput> ScanPart(MarkRun& run) {
   if (!saved.ok()) return PhaseFailure(saved);
   run.report.artifacts["cloud"] = "cloud.ply";
   run.report.metrics["points"] = static_cast<double>(scanned->cloud.size());
+  ReportScanLight(scanned->stats, &run.report);
   return scanned;
 }
 
@@ -446,6 +534,14 @@ Result<std::vector<pattern::ListCommand>> Plan(
     report.metrics["outline_jump_mm"] = paths.jump_mm;
     report.metrics["outline_jump_mm_file_order"] = paths.jump_file_mm;
   }
+  // What the drawings held and the job does not mark: never silent.
+  report.metrics["pattern_texts"] = paths.texts;
+  for (const auto& [kind, n] : paths.skipped) {
+    report.metrics["pattern_skipped_" + kind] = n;
+    report.warnings.push_back("pattern: " + std::to_string(n) + " " + kind +
+                              (n == 1 ? " was" : " were") + " not drawn (not marked)");
+  }
+  for (const std::string& w : paths.warnings) report.warnings.push_back("pattern " + w);
   if (paths.input_points > 0) {
     report.metrics["path_points_in"] = paths.input_points;
     report.metrics["path_points_out"] = paths.mark_points;

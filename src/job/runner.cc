@@ -140,12 +140,7 @@ Status SaveScan(const ScanOutput& scanned, const ScanJobSpec& spec, const std::s
   m["points"] = static_cast<double>(cloud.size());
   m["lines"] = st.lines;
   m["method"] = spec.method;
-  m["valid_fraction"] =
-      st.scan_lines_examined ? static_cast<double>(st.valid) / st.scan_lines_examined : 0.0;
-  m["columns_none"] = static_cast<double>(st.none);
-  m["columns_saturated"] = static_cast<double>(st.saturated);
-  m["columns_two_peaks"] = static_cast<double>(st.two_peaks);
-  m["columns_too_wide"] = static_cast<double>(st.too_wide);
+  ReportScanLight(st, report);
   if (spec.method == 2) {
     m["points_outside_lookup"] = static_cast<double>(st.outside_lookup);
     if (st.outside_lookup > 0) {
@@ -153,19 +148,6 @@ Status SaveScan(const ScanOutput& scanned, const ScanJobSpec& spec, const std::s
                                  " stripe points fell outside the height calibration's volume "
                                  "and were left out");
     }
-  }
-  m["machine_time_s"] = st.machine_time_s;
-  m["extract_time_ms_per_frame"] = st.lines ? st.extract_time_ms / st.lines : 0.0;
-  // The camera as the scan ran it: its band of rows and the frames per second of machine time.
-  m["camera_rows"] = st.region_rows;
-  m["camera_frame_rate_hz"] = st.machine_time_s > 0 ? st.lines / st.machine_time_s : 0.0;
-  m["max_queued_frames"] = st.max_queued_frames;
-  // 1: the scan head's pulses exposed the lines (camera.head_trigger / lmc.trigger_port).
-  m["camera_head_triggered"] = st.trigger == "head" ? 1.0 : 0.0;
-  if (!st.region_note.empty()) report->warnings.push_back("camera region: " + st.region_note);
-  if (st.saturated > 0) {
-    report->warnings.push_back(std::to_string(st.saturated) +
-                               " stripe columns saturated: lower camera.exposure_ms or gain");
   }
   return Status::Ok();
 }

@@ -285,6 +285,117 @@ std::pair<int, int> StripeBand(const ScanOptions& o, const vision::StripeOptions
   return {first, last - first};
 }
 
+// The stripe's brightness target for auto exposure: the 98th percentile of the lit columns'
+// peaks at 60 % of full scale. Speckle (contrast ~0.2) spreads the columns' peaks and the
+// lines between the pre-shot ones may be brighter (a crown, a steeper face toward the
+// camera): 40 % of headroom keeps those below saturation, and 60 % of full scale is still
+// 150 levels of an 8-bit camera, far above the extraction's thresholds.
+constexpr double kExposureTarget = 0.6;
+constexpr double kExposurePercentile = 0.98;
+
+// Auto exposure: pre-shots on the first, middle and last lines (software trigger), each
+// rescaling the exposure by target / level until within 15 % of it (the sensor is linear:
+// stripe and room light both scale with the exposure). A percentile that saturates tells no
+// level: the exposure is cut by 3; no stripe at all: raised by 4 (up to 1 s).
+// Returns the exposure (ms) it set, and counts its frames in *shots.
+Result<double> AutoExpose(hw::Machine& machine, const ScanOptions& options,
+                          const vision::StripeOptions& stripe_options,
+                          const calib::CalibrationSet& calibration, int* shots) {
+  const int n = options.line_count();
+  std::vector<int> probe{0};
+  if (n > 2) probe.push_back(n / 2);
+  if (n > 1) probe.push_back(n - 1);
+  vision::StripeOptions so = stripe_options;
+  if (so.direction == vision::StripeDirection::kAuto) {
+    const double x = options.line_x(0);
+    so.direction = ExpectedDirection(calibration, calibration.camera.Binned(options.binning),
+                                     Eigen::Vector3d(x, options.y_start_mm, 0.0),
+                                     Eigen::Vector3d(x, options.y_end_mm, 0.0));
+  }
+  std::unique_ptr<vision::StripeExtractor> extractor;
+  int extractor_bits = 0;
+  vision::StripeResult stripe;
+  struct PointerGuard {
+    hw::Scanner* s;
+    ~PointerGuard() { (void)s->StopPointer(); }
+  } guard{machine.scanner.get()};
+  double exposure_ms = options.exposure_ms;
+  constexpr double kMinMs = 0.02, kMaxMs = 1000.0;
+  for (int round = 0; round < 6; ++round) {
+    INSITU_RETURN_IF_ERROR(machine.camera->SetExposure(exposure_ms * 1e3).Prefixed("auto exposure"));
+    std::vector<double> peaks;
+    int64_t saturated = 0;
+    int max_value = 255;
+    for (int i : probe) {
+      const double x = options.line_x(i);
+      INSITU_RETURN_IF_ERROR(machine.scanner->StartPointerLine(
+          Eigen::Vector3d(x, options.y_start_mm, options.focus_z_mm),
+          Eigen::Vector3d(x, options.y_end_mm, options.focus_z_mm), options.speed_mm_per_s));
+      machine.clock->SleepFor(options.settle_ms * 1e-3);
+      auto frame = machine.camera->Grab();
+      if (!frame.ok()) return frame.status().Prefixed("auto exposure: camera");
+      ++*shots;
+      if (!extractor || extractor_bits != frame->bit_depth) {
+        extractor = std::make_unique<vision::StripeExtractor>(so.ForBitDepth(frame->bit_depth));
+        extractor_bits = frame->bit_depth;
+      }
+      max_value = frame->max_value();
+      INSITU_RETURN_IF_ERROR(extractor->Extract(vision::ViewOf(*frame), &stripe));
+      for (size_t k = 0; k < stripe.status.size(); ++k) {
+        if (stripe.status[k] == vision::StripeStatus::kValid) peaks.push_back(stripe.peak[k]);
+        if (stripe.status[k] == vision::StripeStatus::kSaturated) ++saturated;
+      }
+    }
+    (void)machine.scanner->StopPointer();
+    // Saturated columns are the brightest: they count at full scale.
+    peaks.insert(peaks.end(), static_cast<size_t>(saturated), static_cast<double>(max_value));
+    double next = exposure_ms;
+    if (peaks.size() < 10) {
+      next = exposure_ms * 4.0;  // no stripe to speak of
+    } else {
+      const size_t k = static_cast<size_t>(kExposurePercentile * (peaks.size() - 1));
+      std::nth_element(peaks.begin(), peaks.begin() + static_cast<ptrdiff_t>(k), peaks.end());
+      if (peaks[k] >= max_value) {
+        next = exposure_ms / 3.0;  // the percentile itself saturates: its level is unknown
+      } else {
+        const double factor = kExposureTarget * max_value / std::max(peaks[k], 1.0);
+        next = exposure_ms * factor;
+        if (std::abs(factor - 1.0) < 0.15) {
+          exposure_ms = std::clamp(next, kMinMs, kMaxMs);
+          break;
+        }
+      }
+    }
+    next = std::clamp(next, kMinMs, kMaxMs);
+    if (next == exposure_ms) break;  // at the camera's or the scan's limit
+    exposure_ms = next;
+  }
+  INSITU_RETURN_IF_ERROR(machine.camera->SetExposure(exposure_ms * 1e3).Prefixed("auto exposure"));
+  return exposure_ms;
+}
+
+// Columns (rows, for a stripe across rows) the lines span in the binned image at the focus
+// height: what a surface under the whole of every line would light.
+int64_t ExpectedColumns(const ScanOptions& o, const vision::StripeOptions& stripe,
+                        const calib::CalibrationSet& cal) {
+  const calib::CameraIntrinsics cam = cal.camera.Binned(o.binning);
+  int64_t total = 0;
+  for (int i = 0; i < o.line_count(); ++i) {
+    const Eigen::Vector3d a = cal.galvo.camera_from_galvo *
+                              Eigen::Vector3d(o.line_x(i), o.y_start_mm, o.focus_z_mm);
+    const Eigen::Vector3d b = cal.galvo.camera_from_galvo *
+                              Eigen::Vector3d(o.line_x(i), o.y_end_mm, o.focus_z_mm);
+    if (!(a.z() > 0 && b.z() > 0)) continue;
+    const Eigen::Vector2d pa = cam.Project(a), pb = cam.Project(b);
+    const bool rows = stripe.direction == vision::StripeDirection::kRows;
+    const double lo = std::max(0.0, std::min(rows ? pa.y() : pa.x(), rows ? pb.y() : pb.x()));
+    const double hi = std::min(static_cast<double>(rows ? cam.height_px : cam.width_px),
+                               std::max(rows ? pa.y() : pa.x(), rows ? pb.y() : pb.x()));
+    if (hi > lo) total += static_cast<int64_t>(hi - lo);
+  }
+  return total;
+}
+
 }  // namespace
 
 Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
@@ -302,6 +413,7 @@ Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
   INSITU_RETURN_IF_ERROR(machine.camera->SetGain(options.gain_db));
   INSITU_RETURN_IF_ERROR(machine.camera->SetBinning(options.binning));
   ScanOutput out;
+  out.stats.exposure_ms = options.exposure_ms;
   struct RegionGuard {  // the camera reads its whole sensor again after the scan
     hw::Camera* camera;
     bool set = false;
@@ -324,6 +436,11 @@ Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
     }
   }
 
+  if (options.auto_exposure) {
+    INSITU_ASSIGN_OR_RETURN(out.stats.exposure_ms,
+                            AutoExpose(machine, options, stripe_options, calibration,
+                                       &out.stats.auto_exposure_shots));
+  }
   const int lines = options.line_count();
   // A camera wired to the head's trigger output exposes on the head's pulses: the head paces
   // the scan, and the lines always stream (the head does not wait for the processing).
@@ -375,7 +492,9 @@ Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
             "line " + std::to_string(i) + ": the processing fell " +
             std::to_string(options.queue_frames) +
             " frames behind the camera (scan.queue_frames); no line was dropped, the scan "
-            "stopped: lower the camera's frame rate or raise queue_frames");
+            "stopped: " +
+            (triggered ? std::string("slow the lines (scan.settle_ms) or raise queue_frames")
+                       : std::string("lower the camera's frame rate or raise queue_frames")));
       }
       return Status::Ok();
     }
@@ -401,7 +520,7 @@ Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
     // while it is still busy would be ignored and the line lost.
     const double rate = machine.camera->max_frame_rate_hz();
     const double period = rate > 0 ? 1.02 / rate : 0.0;
-    sweep.dwell_s = std::max(options.exposure_ms * 1e-3 + 0.5e-3, period - sweep.settle_s);
+    sweep.dwell_s = std::max(out.stats.exposure_ms * 1e-3 + 0.5e-3, period - sweep.settle_s);
     out.stats.trigger = "head";
     INSITU_RETURN_IF_ERROR(machine.camera->StartTriggered().Prefixed("camera trigger"));
     struct TriggerGuard {  // the camera back on software trigger, whatever happens
@@ -416,11 +535,20 @@ Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
     control.progress = [&](double) {
       if (cancel && cancel->load()) head_abort.store(true);
     };
-    std::thread head([&] { head_status = machine.scanner->RunTriggeredSweep(sweep, control); });
+    // Set by the head's thread once the sweep has ended on its own (done or failed, before
+    // this thread aborted it). A sweep that fails wakes a camera waiting for its next pulse.
+    std::atomic<bool> head_ended_itself{false};
+    std::thread head([&] {
+      head_status = machine.scanner->RunTriggeredSweep(sweep, control);
+      if (!head_abort.load()) head_ended_itself.store(true);
+      if (!head_status.ok()) machine.camera->WakeTriggered();
+    });
+    // Stops the head and says what it failed of itself: OK when it was fine, or when it was
+    // only this thread's abort that stopped it (a camera fault is then the camera's to tell).
     const auto end_head = [&]() -> Status {
       head_abort.store(true);
       if (head.joinable()) head.join();
-      return head_status;
+      return head_ended_itself.load() ? head_status : Status::Ok();
     };
     for (int i = 0; i < lines; ++i) {
       if (cancel && cancel->load()) {
@@ -476,6 +604,30 @@ Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
   INSITU_RETURN_IF_ERROR(join());
   out.stats.max_queued_frames = queue.max_size();
   if (progress) progress(lines, lines);
+  // A scan that found the stripe in almost none of the columns its lines cover measured
+  // nothing worth building on: say why here, not as a downstream symptom.
+  vision::StripeOptions resolved = stripe_options;
+  if (resolved.direction == vision::StripeDirection::kAuto) {
+    const double x = options.line_x(0);
+    resolved.direction = ExpectedDirection(calibration, calibration.camera.Binned(options.binning),
+                                           Eigen::Vector3d(x, options.y_start_mm, 0.0),
+                                           Eigen::Vector3d(x, options.y_end_mm, 0.0));
+  }
+  out.stats.expected_columns = ExpectedColumns(options, resolved, calibration);
+  const ScanStats& st = out.stats;
+  if (st.expected_columns > 0 && st.valid * 10 < st.expected_columns) {
+    const std::string counts =
+        "the scan found the stripe in " + std::to_string(st.valid) + " columns of about " +
+        std::to_string(st.expected_columns) + " its lines cover (" +
+        std::to_string(st.saturated) + " saturated, " + std::to_string(st.two_peaks) +
+        " with two peaks; exposure " + std::to_string(st.exposure_ms) + " ms)";
+    return DeviceError(
+        st.saturated > st.valid
+            ? counts + ": the stripe saturates the camera: lower camera.exposure_ms or set "
+                       "camera.auto_exposure: true"
+            : counts + ": too dark, or no part under the lines: raise camera.exposure_ms, set "
+                       "camera.auto_exposure: true, or check where the part lies");
+  }
   return out;
 }
 

@@ -32,7 +32,10 @@ Status ReadScanJob(const LoadedJob& job, ScanJobSpec* spec, hw::MachineConfig* m
   ConfigReader& scan = r.Section("scan");
   ReadScanSection(scan, &spec->scan);
   ConfigReader& cam = r.Section("camera");
+  // Auto exposure unless the job file sets an exposure (then it is the start if asked for).
+  spec->scan.auto_exposure = !cam.Has("exposure_ms");
   cam.Read("exposure_ms", &spec->scan.exposure_ms);
+  cam.Read("auto_exposure", &spec->scan.auto_exposure);
   cam.Read("gain_db", &spec->scan.gain_db);
   cam.Read("binning", &spec->scan.binning);
   if (scan.ok() && cam.ok()) {
@@ -65,6 +68,46 @@ Status ReadScanJob(const LoadedJob& job, ScanJobSpec* spec, hw::MachineConfig* m
   return MachineConfigFor(job, spec->machine, machine);
 }
 
+
+void ReportScanLight(const ScanStats& st, Report* report) {
+  auto& m = report->metrics;
+  m["lines"] = st.lines;
+  m["valid_fraction"] =
+      st.scan_lines_examined ? static_cast<double>(st.valid) / st.scan_lines_examined : 0.0;
+  m["columns_valid"] = static_cast<double>(st.valid);
+  m["columns_expected"] = static_cast<double>(st.expected_columns);
+  m["columns_none"] = static_cast<double>(st.none);
+  m["columns_saturated"] = static_cast<double>(st.saturated);
+  m["columns_two_peaks"] = static_cast<double>(st.two_peaks);
+  m["columns_too_wide"] = static_cast<double>(st.too_wide);
+  m["exposure_ms"] = st.exposure_ms;
+  m["auto_exposure_shots"] = st.auto_exposure_shots;
+  m["machine_time_s"] = st.machine_time_s;
+  m["extract_time_ms_per_frame"] = st.lines ? st.extract_time_ms / st.lines : 0.0;
+  // The camera as the scan ran it: its band of rows and the frames per second of machine time.
+  m["camera_rows"] = st.region_rows;
+  m["camera_frame_rate_hz"] = st.machine_time_s > 0 ? st.lines / st.machine_time_s : 0.0;
+  m["max_queued_frames"] = st.max_queued_frames;
+  // 1: the scan head's pulses exposed the lines (camera.head_trigger / lmc.trigger_port).
+  m["camera_head_triggered"] = st.trigger == "head" ? 1.0 : 0.0;
+  if (!st.region_note.empty()) report->warnings.push_back("camera region: " + st.region_note);
+  // A saturated column's centre is lost (the plateau hides the peak): it matters once it is
+  // more than a stray speckle grain, 1 % of the lit columns.
+  if (st.saturated > 0 && st.saturated * 100 > st.valid + st.saturated) {
+    report->warnings.push_back(std::to_string(st.saturated) + " of " +
+                               std::to_string(st.valid + st.saturated) +
+                               " lit stripe columns saturated and were left out: lower "
+                               "camera.exposure_ms or gain, or set camera.auto_exposure: true");
+  }
+  // Too dark: the lines cover columns that gave no stripe (a dark or steep surface, or
+  // nothing there). Worth saying when most of them did.
+  if (st.expected_columns > 0 && st.valid * 2 < st.expected_columns) {
+    report->warnings.push_back(
+        "the stripe was found in " + std::to_string(st.valid) + " of about " +
+        std::to_string(st.expected_columns) +
+        " columns the lines cover: too dark, too steep, or not part of the part");
+  }
+}
 
 void ReadArtifact(ConfigReader& r, ScanJobSpec* spec) {
   if (r.Has("artifact")) {

@@ -38,6 +38,12 @@ Status ReadScanJob(const LoadedJob& job, ScanJobSpec* spec, hw::MachineConfig* m
 // The `artifact:` section (step_gauge or insert), when present.
 void ReadArtifact(ConfigReader& r, ScanJobSpec* spec);
 
+// What every job that scans reports of its scan: how the columns came out (valid, saturated,
+// without a stripe, two peaks, too wide), the exposure (and auto exposure's pre-shots), the
+// camera's band, trigger and frame rate, the machine time; warnings when saturated columns
+// matter (over 1 % of the lit ones) or the band could not be used.
+void ReportScanLight(const ScanStats& stats, Report* report);
+
 struct ScanMachine {
   hw::Machine machine;
   calib::CalibrationSet calibration;

@@ -3,21 +3,76 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <string_view>
 #include <utility>
 
 #include "pattern/hatch_order.h"
 
 namespace insitu::pattern {
+namespace {
+
+// A pattern image: 64 Mpixel (8192 x 8192) and a 256 MB file are far beyond any mark (at
+// 0.01 mm per pixel, 82 mm square) and keep a decoded mask and its dither buffer (4 bytes a
+// pixel) within ~400 MB.
+constexpr int64_t kMaxImagePixels = 64ll << 20;
+constexpr uintmax_t kMaxImageFileBytes = 256ull << 20;
+
+}  // namespace
 
 Result<Mask> LoadRasterMask(const std::string& path, int threshold, bool invert, bool dither) {
   if (!std::filesystem::exists(path)) return NotFound(path + ": no such pattern image");
+  std::error_code ec;
+  const auto size = std::filesystem::file_size(path, ec);
+  if (ec) return NotFound(path + ": cannot read the pattern image (" + ec.message() + ")");
+  if (size > kMaxImageFileBytes) {
+    return InvalidArgument(path + ": " + std::to_string(size) +
+                           " bytes is larger than a pattern image may be (256 MB)");
+  }
+  std::ifstream f(path, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  if (!f.good() && !f.eof()) return NotFound(path + ": cannot read the pattern image");
+  return DecodeRasterMask(bytes, path, threshold, invert, dither);
+}
+
+Result<Mask> DecodeRasterMask(const std::string& bytes, const std::string& path, int threshold,
+                              bool invert, bool dither) {
   if (threshold < 0 || threshold > 255) {
     return InvalidArgument("threshold must be in 0..255, got " + std::to_string(threshold));
   }
-  cv::Mat img = cv::imread(path, cv::IMREAD_GRAYSCALE | cv::IMREAD_ANYDEPTH);
+  // Only the formats a pattern comes in reach OpenCV's decoders: it registers many more
+  // (DICOM through GDCM, OpenEXR, Radiance HDR, JPEG 2000, ...), and GDCM aborts the process
+  // on a malformed file (found by tests/fuzz/image_fuzz.cc).
+  const auto starts = [&](std::string_view magic) {
+    return bytes.size() >= magic.size() && std::string_view(bytes).substr(0, magic.size()) == magic;
+  };
+  const bool known = starts("\x89PNG\r\n\x1a\n") || starts("\xff\xd8\xff") || starts("BM") ||
+                     starts(std::string_view("II*\0", 4)) ||
+                     starts(std::string_view("MM\0*", 4)) ||
+                     (bytes.size() >= 2 && bytes[0] == 'P' && bytes[1] >= '1' && bytes[1] <= '6');
+  if (!known) {
+    return InvalidArgument(path + ": not a PNG, JPEG, BMP, TIFF or PNM (PBM/PGM/PPM) image");
+  }
+  cv::Mat img;
+  try {
+    // OpenCV itself refuses images over 2^30 pixels while decoding (CV_IO_MAX_IMAGE_PIXELS);
+    // a pattern's own limit is checked after.
+    const cv::Mat raw(1, static_cast<int>(bytes.size()), CV_8U,
+                      const_cast<char*>(bytes.data()));
+    if (bytes.empty()) return InvalidArgument(path + ": empty image file");
+    img = cv::imdecode(raw, cv::IMREAD_GRAYSCALE | cv::IMREAD_ANYDEPTH);
+  } catch (const cv::Exception& e) {
+    return InvalidArgument(path + ": not an image OpenCV can read (" + e.err + ")");
+  }
   if (img.empty()) return InvalidArgument(path + ": not an image OpenCV can read");
+  if (static_cast<int64_t>(img.cols) * img.rows > kMaxImagePixels) {
+    return InvalidArgument(path + ": " + std::to_string(img.cols) + " x " +
+                           std::to_string(img.rows) +
+                           " pixels is more than a pattern image may have (64 Mpixel)");
+  }
   if (img.depth() != CV_8U) img.convertTo(img, CV_8U, img.depth() == CV_16U ? 1.0 / 257.0 : 1.0);
   Mask m;
   m.width = img.cols;

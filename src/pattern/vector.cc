@@ -4,6 +4,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <sstream>
 #include <utility>
 
@@ -11,6 +12,15 @@
 #include "pattern/hatch_order.h"
 
 namespace insitu::pattern {
+
+void VectorPattern::Append(VectorPattern other) {
+  for (Polyline& p : other.paths) paths.push_back(std::move(p));
+  ignored_commands += other.ignored_commands;
+  for (const auto& [kind, n] : other.skipped) skipped[kind] += n;
+  for (const auto& [kind, n] : other.converted) converted[kind] += n;
+  texts += other.texts;
+  for (std::string& w : other.warnings) warnings.push_back(std::move(w));
+}
 
 namespace {
 
@@ -112,6 +122,15 @@ Result<VectorPattern> ParseHpgl(const std::string& text, const std::string& orig
 Result<VectorPattern> LoadHpgl(const std::string& path) {
   INSITU_ASSIGN_OR_RETURN(const std::string text, ReadPatternFile(path, "plot"));
   return ParseHpgl(text, path);
+}
+
+Result<VectorPattern> LoadVectorFile(const std::string& path, double tolerance_mm) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (ext == ".svg") return LoadSvg(path, tolerance_mm);
+  if (ext == ".dxf") return LoadDxf(path, tolerance_mm);
+  if (ext == ".plt" || ext == ".hpgl" || ext == ".hpg" || ext == ".hgl") return LoadHpgl(path);
+  return InvalidArgument(path + ": not a vector drawing insitu reads (.svg, .dxf, .plt/.hpgl)");
 }
 
 namespace {

@@ -556,6 +556,10 @@ void SimWorld::ArmTrigger(bool armed) {
   trigger_armed_ = armed && options_.camera.head_trigger;
   head_started_ = false;
   triggered_.clear();
+  // The camera is idle once (re)armed: an exposure or a frame on the link from before (a
+  // sweep aborted mid-exposure) is over, its frame dropped with the rest.
+  exposing_until_s_ = std::min(exposing_until_s_, now_s_);
+  link_free_s_ = std::min(link_free_s_, now_s_);
   ignored_pulses_ = 0;
   triggered_wake_.notify_all();
 }
@@ -588,6 +592,13 @@ void SimWorld::SetHeadRunning(bool running) {
   std::lock_guard<std::recursive_mutex> lock(mutex_);
   head_running_ = running;
   head_started_ = head_started_ || running;
+  triggered_wake_.notify_all();
+}
+
+void SimWorld::HeadFailed() {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  head_started_ = true;
+  head_running_ = false;
   triggered_wake_.notify_all();
 }
 

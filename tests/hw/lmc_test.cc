@@ -111,9 +111,10 @@ TEST(Lmc, SingleCommandsAndUnits) {
   EXPECT_EQ(EncodeList(l, BoardOptions{}, &at, &z).status().code(), StatusCode::kOutOfRange);
 }
 
-// A triggered sweep is one light list: per line a jump to its start, the settle as a jump
-// delay, the trigger bit raised for the pulse beside the pointer's bit and lowered, then
-// passes back and forth for the dwell (12 ms at 2000 mm/s over 20 mm: 24 mm, two passes).
+// A triggered sweep is one light list: per line a jump to its end nearer the head, the settle
+// as a list delay, the trigger bit raised for the pulse beside the pointer's bit and lowered,
+// then passes back and forth for the dwell (12 ms at 2000 mm/s: 24 mm over a 20 mm line, so a
+// full pass and 4 mm back), the next line from its end nearer to where that left the head.
 TEST(Lmc, ATriggeredSweepRaisesTheTriggerBitOncePerLine) {
   BoardOptions o;
   o.trigger_port = 0x0002;
@@ -122,32 +123,43 @@ TEST(Lmc, ATriggeredSweepRaisesTheTriggerBitOncePerLine) {
   sweep.speed_mm_per_s = 2000.0;
   sweep.settle_s = 0.005;
   sweep.dwell_s = 0.012;
-  std::array<uint16_t, 2> at{0x8000, 0x8000};
+  const auto units = [&](double x, double y) { return *ToUnits(x, y, o); };
+  std::array<uint16_t, 2> at = units(-30, 0);
   uint16_t z = 0;
   const auto list = EncodeTriggeredSweep(sweep, o, &at, &z);
   ASSERT_TRUE(list.ok()) << list.status().ToString();
   const std::string text = FormatCommands(*list);
-  // The header: the pointer's port, no laser current, the sweep's speed (2000 mm/s).
+  // The header: the pointer's port, no laser current.
   EXPECT_NE(text.find("listWritePort        0100 0000"), std::string::npos) << text;
   EXPECT_NE(text.find("listMarkCurrent      0000 0000"), std::string::npos) << text;
-  const std::string first_line =
-      "listJumpTo           68ba 8000 0000 1746 0000\n"
-      "listJumpDelay        1388 0000 0000 0000 0000\n"
-      "listWritePort        0102 0000 0000 0000 0000\n"
-      "listDelayTime        000a 0000 0000 0000 0000\n"
-      "listWritePort        0100 0000 0000 0000 0000\n"
-      "listJumpTo           9745 8000 0000 2e8b 0000\n"
-      "listJumpTo           68ba 8000 0000 2e8b 0000\n";
-  EXPECT_NE(text.find(first_line), std::string::npos) << text;
-  size_t rises = 0;
-  for (const Command& c : *list) rises += c[0] == kWritePortList && (c[1] & 0x0002);
-  EXPECT_EQ(rises, 2u);
-  // A board without the output, a settle longer than the jump delay holds: refused.
+  // After the header: line 0 from x = -10 (nearer x = -30), line 1 from x = +10 (nearer +6).
+  const std::vector<Command> body(list->begin() + 10, list->end());
+  const auto jump = [](const std::array<uint16_t, 2>& u) {
+    return std::make_pair(static_cast<uint16_t>(kJumpTo), u);
+  };
+  const std::vector<std::pair<uint16_t, std::array<uint16_t, 2>>> expected{
+      jump(units(-10, 0)), {kDelayTime, {500, 0}},   {kWritePortList, {0x0102, 0}},
+      {kDelayTime, {10, 0}}, {kWritePortList, {0x0100, 0}}, jump(units(10, 0)),
+      jump(units(6, 0)),   jump(units(10, 1)),     {kDelayTime, {500, 0}},
+      {kWritePortList, {0x0102, 0}}, {kDelayTime, {10, 0}}, {kWritePortList, {0x0100, 0}},
+      jump(units(-10, 1)), jump(units(-6, 1))};
+  ASSERT_EQ(body.size(), expected.size()) << text;
+  for (size_t k = 0; k < body.size(); ++k) {
+    EXPECT_EQ(body[k][0], expected[k].first) << "command " << k << "\n" << text;
+    EXPECT_NEAR(body[k][1], expected[k].second[0], 1) << "command " << k << "\n" << text;
+    if (body[k][0] == kJumpTo) {
+      EXPECT_NEAR(body[k][2], expected[k].second[1], 1) << k;
+    }
+  }
+  // A board without the output, a settle longer than the list delay holds: refused.
   EXPECT_EQ(EncodeTriggeredSweep(sweep, BoardOptions{}, &at, &z).status().code(),
             StatusCode::kFailedPrecondition);
-  sweep.settle_s = 0.07;
+  sweep.settle_s = 0.7;
   EXPECT_EQ(EncodeTriggeredSweep(sweep, o, &at, &z).status().code(), StatusCode::kOutOfRange);
-  // The output must be one bit of its own.
+  // The output must be one bit of its own, its pulse short (the pointer waits for it).
+  o.trigger_pulse_us = 5000;
+  EXPECT_EQ(o.Validate().code(), StatusCode::kInvalidArgument);
+  o.trigger_pulse_us = 100;
   o.trigger_port = 0x0003;
   EXPECT_EQ(o.Validate().code(), StatusCode::kInvalidArgument);
   o.trigger_port = 0x0100;  // the pointer's

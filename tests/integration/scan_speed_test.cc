@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -53,10 +54,12 @@ void ExpectSameSurface(const job::ScanOutput& a, const job::ScanOutput& b) {
     EXPECT_GT(eb.steps[i].points, 500) << "step " << i;
     EXPECT_NEAR(ea.steps[i].mean_error_mm, eb.steps[i].mean_error_mm, 0.01) << "step " << i;
   }
-  // The same columns carry the stripe, within 2 % (columns at the steps' edges, where the
-  // sweep's phase decides whether the stripe is bright enough).
+  // Nearly the same columns carry the stripe. A 50 ms exposure at 5000 mm/s over a 100 mm
+  // line is 2.5 passes: where the sweep was when the exposure began decides which half of the
+  // line gets 3 passes and which 2, a 1.5x difference in brightness that moves the dim
+  // columns (steep step sides, far plate) across the extraction's thresholds: within 10 %.
   EXPECT_NEAR(static_cast<double>(b.cloud.size()), static_cast<double>(a.cloud.size()),
-              0.02 * a.cloud.size());
+              0.10 * a.cloud.size());
 }
 
 // On the head's pulses each line costs the settle and the exposure only: the frame crosses the
@@ -127,6 +130,32 @@ TEST(ScanSpeed, TheBoardsTriggerOutputPacesTheCamera) {
   auto reference = Scan(direct, config.world);
   ASSERT_TRUE(reference.ok()) << reference.status().ToString();
   ExpectSameSurface(*reference, *out);
+  // On the board's clock a line costs the jump to it (from where the last pass stopped to the
+  // line's nearer end: at most half a line and a spacing, at the sweep's 5000 mm/s), the
+  // settle, the pulse (0.1 ms) and the dwell (exposure + 0.5 ms); the last frame's link after.
+  const job::ScanOptions o = FastScan();
+  const double length = o.y_end_mm - o.y_start_mm;
+  const double line_s = (o.settle_ms + 0.1 + o.exposure_ms + 0.5) * 1e-3;
+  const double jump_s = (0.5 * length + o.line_spacing_mm) / o.speed_mm_per_s;
+  EXPECT_GT(out->stats.machine_time_s, 20 * line_s);
+  EXPECT_LT(out->stats.machine_time_s, 20 * (line_s + jump_s) + 0.02);
+  std::printf("machine time: board-triggered %.3f s, head-triggered %.3f s\n",
+              out->stats.machine_time_s, reference->stats.machine_time_s);
+
+  // A sweep the board refuses before it starts (a settle longer than its list delay holds)
+  // is the board's error, at once, not a camera waiting for a pulse.
+  job::ScanOptions slow = o;
+  slow.settle_ms = 700.0;
+  const auto t0 = std::chrono::steady_clock::now();
+  auto refused_sweep = Scan(*machine, config.world, slow);
+  ASSERT_FALSE(refused_sweep.ok());
+  EXPECT_EQ(refused_sweep.status().code(), StatusCode::kOutOfRange)
+      << refused_sweep.status().ToString();
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 10.0);
+  // ... and the cell scans again after it.
+  auto again = Scan(*machine, config.world);
+  ASSERT_TRUE(again.ok()) << again.status().ToString();
+  EXPECT_EQ(again->stats.lines, 20);
 
   // A board without the output cannot pace a camera that waits for it.
   config.lmc.board.trigger_port = 0;
@@ -169,6 +198,20 @@ TEST(ScanSpeed, PulsesTheCameraCannotTakeAreCountedNotSilent) {
       << none.status().message();
   // The clock waited for the second frame's link after the head stopped.
   EXPECT_GT(w.now_s(), 0.025 + 0.020);
+}
+
+// A camera fault during a triggered scan is the camera's error (the device fault a daemon
+// reports as such), not a cancel: the head stopped because the scan stopped it.
+TEST(ScanSpeed, ACameraFaultInATriggeredScanIsNotACancel) {
+  sim::WorldOptions world;
+  world.camera.head_trigger = true;
+  world.faults.camera_drop_frame_at = 3;
+  hw::Machine machine = hw::MakeSimMachine(std::make_shared<sim::SimWorld>(world));
+  auto out = Scan(machine, world);
+  ASSERT_FALSE(out.ok());
+  EXPECT_EQ(out.status().code(), StatusCode::kDeviceError) << out.status().ToString();
+  EXPECT_NE(out.status().message().find("packets lost"), std::string::npos)
+      << out.status().message();
 }
 
 // Cancel reaches the head between lines: the scan ends cancelled, the pointer is off and the

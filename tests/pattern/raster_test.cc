@@ -114,3 +114,28 @@ TEST(Raster, PlacementScalesRotatesThenMoves) {
 
 }  // namespace
 }  // namespace insitu::pattern
+
+namespace insitu::pattern {
+namespace {
+
+// Only the image formats patterns come in reach OpenCV's decoders: a DICOM file (OpenCV
+// would hand it to GDCM, which aborts the process on a malformed one), or text, is refused
+// by its first bytes, naming the file.
+TEST(RasterBytes, OnlyPatternImageFormatsAreDecoded) {
+  const std::string dicom = std::string(128, '\0') + "DICM" + std::string(64, '\x01');
+  auto refused = DecodeRasterMask(dicom, "scan.dcm");
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(refused.status().message().find("scan.dcm"), std::string::npos);
+  EXPECT_FALSE(DecodeRasterMask("P5 not really", "x.pgm").ok());  // PNM magic, bad body
+  // A 2 x 1 PGM (binary): one black pixel (marked), one white.
+  const std::string pgm = std::string("P5\n2 1\n255\n") + '\0' + '\xff';
+  auto mask = DecodeRasterMask(pgm, "two.pgm");
+  ASSERT_TRUE(mask.ok()) << mask.status().ToString();
+  EXPECT_EQ(mask->width, 2);
+  EXPECT_TRUE(mask->at(0, 0));
+  EXPECT_FALSE(mask->at(1, 0));
+}
+
+}  // namespace
+}  // namespace insitu::pattern

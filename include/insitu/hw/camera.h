@@ -47,8 +47,13 @@ class Camera {
   virtual Status StartTriggered() {
     return FailedPrecondition("this camera has no trigger input wired to the scan head");
   }
-  // Back to software trigger (also after a failed scan).
+  // Back to software trigger (also after a failed scan); frames of pulses that came after
+  // the last grab are dropped.
   virtual Status StopTriggered() { return Status::Ok(); }
+  // From another thread: the head's sweep has ended early (it failed), so no pulse will come:
+  // a Grab waiting for a triggered frame returns now with device_error rather than at its
+  // timeout. A camera that cannot be woken waits its timeout.
+  virtual void WakeTriggered() {}
   // The highest frame rate the camera keeps at its exposure, binning and region (Hz): the
   // link and the readout; 0 if the camera does not tell. A triggered scan paces its lines
   // to it, since a pulse while the camera is busy is ignored.

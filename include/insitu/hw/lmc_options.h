@@ -37,7 +37,7 @@ struct BoardOptions {
   // The output bit wired to the side camera's trigger input (0: none). A triggered scan runs
   // as one list that raises it for trigger_pulse_us on each line, once the mirrors settled.
   uint16_t trigger_port = 0;
-  double trigger_pulse_us = 100.0;   // sent in 10 us units; the camera's minimum is a few us
+  double trigger_pulse_us = 100.0;   // 10..1000, in 10 us units; cameras need a few us
   double open_mo_delay_us = 8000.0;  // the fibre laser's master oscillator settles
   double polygon_delay_us = 100.0;   // sent in 10 us units
   int poll_ms = 2;                   // status poll period while a list runs

@@ -28,6 +28,11 @@ struct ScanOptions {
   double speed_mm_per_s = 5000.0;  // seed 000 sec. 3.2
   double settle_ms = 5.0;          // wait after starting a line before exposing
   double exposure_ms = 50.0;       // seed 000 sec. 3.2
+  // Before the scan, pre-shots on its first, middle and last lines set the exposure so the
+  // brightest stripe columns reach ~60 % of full scale and none saturates, starting from
+  // exposure_ms: the line's length, the part's albedo and the room light all change how
+  // bright the stripe is (a short line is swept more often per exposure).
+  bool auto_exposure = false;
   double gain_db = 0.0;
   int binning = 1;
   // 1: camera + light plane (seed 000 method 1); 2: method 1's ray, height from the
@@ -61,6 +66,11 @@ struct ScanStats {
   int region_rows = 0;
   std::string region_note;           // why the band is not used, when it is not
   std::string trigger;               // "software" (a grab per line) or "head" (its pulses)
+  double exposure_ms = 0.0;          // the exposure the lines were taken at
+  int auto_exposure_shots = 0;       // pre-shot frames auto exposure took (0: off)
+  // Columns (rows) the lines cover in the image, from the calibration: what a part filling
+  // the lines would give. A scan with centres in under a tenth of them fails.
+  int64_t expected_columns = 0;
   double extract_time_ms = 0.0;      // wall time in the stripe extractor, all frames
 };
 

@@ -31,6 +31,10 @@ struct Mask {
 // invalid_argument (not an image, empty, nothing to mark).
 Result<Mask> LoadRasterMask(const std::string& path, int threshold = 128, bool invert = false,
                             bool dither = false);
+// The same from the file's bytes (`path` names it in errors). Images over 64 Mpixel are
+// refused (invalid_argument).
+Result<Mask> DecodeRasterMask(const std::string& bytes, const std::string& path,
+                              int threshold = 128, bool invert = false, bool dither = false);
 
 struct Segment2 {
   Eigen::Vector2d a = Eigen::Vector2d::Zero();

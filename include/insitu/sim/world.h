@@ -178,6 +178,9 @@ class SimWorld {
   // computer's time.
   Result<Frame> TakeTriggered(double wall_timeout_s);
   int ignored_pulses() const;
+  // The head's sweep failed (possibly before it started): no pulse will come, a waiting
+  // TakeTriggered returns now.
+  void HeadFailed();
 
   // The scan head's coaxial camera: exposes for `exposure_us` around where the head points,
   // sharp at the dynamic-focus height (the clock advances). 8-bit frame.

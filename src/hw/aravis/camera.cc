@@ -86,15 +86,18 @@ class AravisCamera : public Camera {
   bool head_triggered() const override { return options_.trigger != "software"; }
 
   // The head's pulses on the wired input expose the frames; frames of earlier grabs still in
-  // the stream's queue are dropped first, so the n-th grab is the n-th pulse's frame.
+  // the stream's queue are dropped first, so the n-th grab is the n-th pulse's frame. The
+  // trigger is set whole (mode off, FrameStart, source, rising edge, mode on): some cameras
+  // refuse a new source while the trigger is on.
   Status StartTriggered() override {
     if (!head_triggered()) return Camera::StartTriggered();
     INSITU_RETURN_IF_ERROR(EnsureConnected());
-    while (ArvBuffer* old = arv_stream_try_pop_buffer(stream())) arv_stream_push_buffer(stream(), old);
+    DropQueuedFrames();
     GError* error = nullptr;
-    arv_camera_set_trigger_source(camera(), options_.trigger.c_str(), &error);
+    arv_camera_set_trigger(camera(), options_.trigger.c_str(), &error);
     if (error != nullptr) return Lost("trigger source " + options_.trigger + ": " + Take(&error));
     triggered_ = true;
+    last_frame_id_ = -1;
     return Status::Ok();
   }
   Status StopTriggered() override {
@@ -102,14 +105,29 @@ class AravisCamera : public Camera {
     triggered_ = false;
     if (camera() == nullptr) return Status::Ok();  // a reconnect comes back on software
     GError* error = nullptr;
-    arv_camera_set_trigger_source(camera(), "Software", &error);
+    arv_camera_set_trigger(camera(), "Software", &error);
+    // Frames of pulses after the last grab (a cancelled scan) are no single grab's.
+    DropQueuedFrames();
     if (error != nullptr) return Lost("trigger source Software: " + Take(&error));
     return Status::Ok();
   }
-  // The camera's own bound on AcquisitionFrameRate at its exposure and region (SFNC cameras
-  // lower it as the exposure grows and raise it as the region shrinks); 0 without one.
+  // The frame rate the camera says it reaches at its exposure, region and link
+  // (ResultingFrameRate and its vendor names), else the bound of AcquisitionFrameRate (which
+  // on some cameras ignores the exposure and the link); 0 without either.
   double max_frame_rate_hz() const override {
     if (camera() == nullptr) return 0.0;
+    ArvDevice* device = arv_camera_get_device(camera());
+    for (const char* name :
+         {"ResultingFrameRate", "ResultingFrameRateAbs", "AcquisitionResultingFrameRate"}) {
+      GError* error = nullptr;
+      if (!arv_device_is_feature_available(device, name, &error) || error != nullptr) {
+        g_clear_error(&error);
+        continue;
+      }
+      const double rate = arv_device_get_float_feature_value(device, name, &error);
+      if (error == nullptr && rate > 0 && std::isfinite(rate)) return rate;
+      g_clear_error(&error);
+    }
     GError* error = nullptr;
     double lo = 0, hi = 0;
     arv_camera_get_frame_rate_bounds(camera(), &lo, &hi, &error);
@@ -197,6 +215,7 @@ class AravisCamera : public Camera {
     INSITU_RETURN_IF_ERROR(EnsureConnected());
     GError* error = nullptr;
     if (!triggered_) {
+      DropQueuedFrames();  // a frame still queued is an earlier trigger's, not this grab's
       arv_camera_software_trigger(camera(), &error);
       if (error != nullptr) return Lost("trigger: " + Take(&error), /*reachable=*/false);
     }
@@ -228,6 +247,20 @@ class AravisCamera : public Camera {
     f.bit_depth = options_.bit_depth;
     f.binning = binning_;
     f.sequence = arv_buffer_get_frame_id(buffer);
+    if (triggered_) {
+      // Frame ids count exposures: a gap is a pulse the camera ignored or a frame the stream
+      // lost, and every later frame would belong to another line.
+      const auto id = static_cast<int64_t>(f.sequence);
+      const int64_t expected = last_frame_id_ < 0 ? id : last_frame_id_ + 1;
+      last_frame_id_ = id;
+      if (id != expected && !(expected == 65536 && id == 1) && !(expected == 65536 && id == 0)) {
+        arv_stream_push_buffer(stream(), buffer);
+        return Status(StatusCode::kDeviceError,
+                      "GigE camera at " + address_ + ": frame " + std::to_string(id) +
+                          " follows frame " + std::to_string(expected - 1) +
+                          ": a pulse was ignored or a frame lost, the lines would shift");
+      }
+    }
     f.timestamp_s = arv_buffer_get_timestamp(buffer) * 1e-9;
     f.exposure_us = exposure_us_;
     f.gain_db = gain_db_;
@@ -242,6 +275,12 @@ class AravisCamera : public Camera {
   ArvCamera* camera() const { return link_.camera(); }
   ArvStream* stream() const { return link_.stream(); }
   bool triggered_ = false;  // between StartTriggered and StopTriggered
+  int64_t last_frame_id_ = -1;  // the last triggered frame's id
+
+  void DropQueuedFrames() {
+    if (stream() == nullptr) return;
+    while (ArvBuffer* old = arv_stream_try_pop_buffer(stream())) arv_stream_push_buffer(stream(), old);
+  }
 
   Status EnsureConnected() {
     if (camera() != nullptr) return Status::Ok();

@@ -106,11 +106,12 @@ std::array<double, 2> FromUnits(uint16_t u, uint16_t v, const BoardOptions& opti
 Result<std::vector<Command>> EncodeList(const GalvoList& list, const BoardOptions& options,
                                         std::array<uint16_t, 2>* position, uint16_t* z_word);
 // A triggered sweep (Scanner::RunTriggeredSweep) as one list: the light list's parameters (the
-// pointer port on, the laser off, the sweep's jump speed), then per line a jump to its start, a
-// JumpDelay of the settle time, the trigger bit raised for trigger_pulse_us and lowered, and
-// jumps back and forth along the line for the dwell. Errors: failed_precondition (no
-// trigger_port), out_of_range (a point; a settle over the jump delay's 65.535 ms),
-// invalid_argument (the sweep).
+// pointer port on, the laser off, the sweep's jump speed), then per line a jump to its end
+// nearer the head, a DelayTime of the settle time, the trigger bit raised for
+// trigger_pulse_us and lowered, and jumps back and forth along the line for the dwell, the
+// last one ending where the dwell does. Errors: failed_precondition (no trigger_port),
+// out_of_range (a point; a settle over the list delay's 655.35 ms), invalid_argument (the
+// sweep).
 Result<std::vector<Command>> EncodeTriggeredSweep(const TriggeredSweep& sweep,
                                                   const BoardOptions& options,
                                                   std::array<uint16_t, 2>* position,

@@ -65,8 +65,9 @@ Status BoardOptions::Validate() const {
       return InvalidArgument("trigger_port must be a bit of its own, not the pointer's "
                              "(pointer_port) or a marking list's (list_ports)");
     }
-    if (!(trigger_pulse_us >= 10 && trigger_pulse_us <= 10000)) {
-      return InvalidArgument("trigger_pulse_us must be in [10, 10000]");
+    // The pointer waits at the line's start while the pulse is high: 1 ms at most.
+    if (!(trigger_pulse_us >= 10 && trigger_pulse_us <= 1000)) {
+      return InvalidArgument("trigger_pulse_us must be in [10, 1000]");
     }
   }
   return Status::Ok();
@@ -186,10 +187,11 @@ Result<std::vector<Command>> EncodeTriggeredSweep(const TriggeredSweep& sweep,
   if (o.trigger_port == 0) {
     return FailedPrecondition("the board has no output wired to the camera (trigger_port)");
   }
-  const double settle_us = sweep.settle_s * 1e6;
-  if (settle_us > 65535.0) {
+  // The settle as a list delay (10 us units, up to 655.35 ms).
+  const double settle_units = std::round(sweep.settle_s * 1e5);
+  if (settle_units > 65535.0) {
     return OutOfRange("settle " + std::to_string(sweep.settle_s * 1e3) +
-                      " ms is longer than the board's jump delay (65.535 ms)");
+                      " ms is longer than the board's list delay (655.35 ms)");
   }
   // The light list's parameters: the pointer port on, the laser off, the sweep's speed.
   GalvoList light;
@@ -200,25 +202,42 @@ Result<std::vector<Command>> EncodeTriggeredSweep(const TriggeredSweep& sweep,
   lo.open_mo_delay_us = 0.0;
   INSITU_ASSIGN_OR_RETURN(std::vector<Command> out, EncodeList(light, lo, position, z_word));
   const auto pulse = static_cast<uint16_t>(std::round(o.trigger_pulse_us / 10.0));
-  for (const auto& [from, to] : sweep.lines) {
+  const double scale = kUnits / o.lens_mm;  // units per mm
+  for (const auto& [a, b] : sweep.lines) {
+    // Each line from its end nearer to where the head is: the jump between lines is then
+    // about one line spacing, not a line's length (the exposure sees the line either way).
+    const auto ua = ToUnits(a.x(), a.y(), o), ub = ToUnits(b.x(), b.y(), o);
+    bool reverse = false;
+    if (ua.ok() && ub.ok()) {
+      reverse = Distance(*position, *ub) < Distance(*position, *ua);
+    }
+    const Eigen::Vector3d& from = reverse ? b : a;
+    const Eigen::Vector3d& to = reverse ? a : b;
     INSITU_RETURN_IF_ERROR(AppendPoint(from, /*mark=*/false, o, position, z_word, &out));
-    if (settle_us > 0) out.push_back(Delay(kJumpDelay, settle_us));
+    if (settle_units > 0) {
+      out.push_back({kDelayTime, static_cast<uint16_t>(settle_units), 0, 0, 0, 0});
+    }
     out.push_back({kWritePortList, static_cast<uint16_t>(o.pointer_port | o.trigger_port), 0, 0,
                    0, 0});
     out.push_back({kDelayTime, pulse, 0, 0, 0, 0});
     out.push_back({kWritePortList, o.pointer_port, 0, 0, 0, 0});
-    // Back and forth along the line for the dwell: the exposure sees whole passes.
+    // Back and forth along the line for the dwell, the last pass ending where the dwell does
+    // (the next line starts from there).
     const double length = (to - from).norm();
-    const int passes = length > 1e-6 ? std::max(1, static_cast<int>(std::ceil(
-                                                       sweep.dwell_s * sweep.speed_mm_per_s / length)))
-                                     : 0;
-    for (int k = 1; k <= passes; ++k) {
-      INSITU_RETURN_IF_ERROR(AppendPoint(k % 2 ? to : from, false, o, position, z_word, &out));
-    }
-    if (passes == 0) {  // a point: stay on it
+    double left_mm = sweep.dwell_s * sweep.speed_mm_per_s;
+    if (length * scale < 1.0) {  // a point: stay on it
       out.push_back({kDelayTime,
                      static_cast<uint16_t>(std::min(std::round(sweep.dwell_s * 1e5), 65535.0)), 0,
                      0, 0, 0});
+      continue;
+    }
+    for (int k = 1; left_mm > 0; ++k) {
+      const Eigen::Vector3d& end = k % 2 ? to : from;
+      const Eigen::Vector3d& start = k % 2 ? from : to;
+      const double step = std::min(left_mm, length);
+      INSITU_RETURN_IF_ERROR(AppendPoint(start + (end - start) * (step / length), false, o,
+                                         position, z_word, &out));
+      left_mm -= step;
     }
   }
   return out;

@@ -66,7 +66,6 @@ struct SimBoard::Impl {
           continue;
         }
         running = false;
-        if (sweep.active) EndSweep();
         return;
       }
     });
@@ -124,8 +123,10 @@ struct SimBoard::Impl {
           const auto xy = FromUnits(c[1], c[2], options);
           const Eigen::Vector3d q(xy[0], xy[1], z_mm);
           if (sweep.pulse_pending) {
-            (void)world->StartPointerLine(sweep.at, q, params.jump_speed_mm_per_s);
+            // The jump to the line and the settle pass first; then the pointer sweeps from the
+            // line's start as the trigger rises.
             world->Advance(sweep.to_pulse_s);
+            (void)world->StartPointerLine(sweep.at, q, params.jump_speed_mm_per_s);
             world->TriggerPulse();
             sweep.pending_s -= sweep.to_pulse_s;
             sweep.pulse_pending = false;
@@ -134,14 +135,20 @@ struct SimBoard::Impl {
           sweep.at = q;
           break;
         }
+        case kEndOfList:  // the padding of the list's last packet: the sweep is over
+          EndSweep();
+          return;
         default:
           break;
       }
     }
   }
 
-  // The sweep's list has run out: its last time on the clock, the head's clock handed back.
+  // The sweep's list has run out (its end-of-list padding; or the host stopped it, cleared
+  // the ports or reset the list): its last time on the clock, the head's clock handed back.
+  // A sweep streamed in several packets goes on across them.
   void EndSweep() {
+    if (!sweep.active) return;
     world->Advance(sweep.pending_s);
     world->SetHeadRunning(false);
     sweep = Sweep{};
@@ -245,6 +252,7 @@ struct SimBoard::Impl {
       case kResetList:
         buffer.clear();
         list_open = false;
+        if (!running) EndSweep();
         break;
       case kExecuteList:
         list_open = true;
@@ -264,6 +272,7 @@ struct SimBoard::Impl {
         abort = true;
         buffer.clear();
         list_open = false;
+        EndSweep();  // the runner has stopped (Write joined it)
         world->StopPointer();
         break;
       }
@@ -277,6 +286,7 @@ struct SimBoard::Impl {
         log.laser_enabled = false;
         break;
       case kWritePort:
+        if (!running) EndSweep();
         log.ports = c[1];
         if (!(c[1] & options.pointer_port)) world->StopPointer();
         break;

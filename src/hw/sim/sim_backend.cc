@@ -124,6 +124,7 @@ class SimCamera : public Camera {
     return Status::Ok();
   }
   double max_frame_rate_hz() const override { return world_->MaxFrameRateHz(); }
+  void WakeTriggered() override { world_->HeadFailed(); }
 
  protected:
   Status ApplyRegion(int first_row, int rows) override {
