@@ -80,8 +80,10 @@ set(CPACK_DEBIAN_PACKAGE_SECTION science)
 set(CPACK_DEBIAN_PACKAGE_PRIORITY optional)
 # The shared libraries' packages come from dpkg-shlibdeps (dpkg-dev); adduser for postinst.
 set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
-set(CPACK_DEBIAN_PACKAGE_DEPENDS "adduser")
-set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "systemd, udev")
+# The Hershey fonts' data is read at run time (text in hershey:NAME fonts, DXF SHX styles), the
+# DejaVu fonts are the outline fonts text falls back to.
+set(CPACK_DEBIAN_PACKAGE_DEPENDS "adduser, hershey-fonts-data, fontconfig")
+set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "systemd, udev, fonts-dejavu-core")
 # arv-tool-0.8 lists the GigE cameras insitu can open (docs/hardware.md).
 set(CPACK_DEBIAN_PACKAGE_SUGGESTS "aravis-tools")
 set(CPACK_DEBIAN_PACKAGE_CONTROL_EXTRA

@@ -386,6 +386,7 @@ Result<Report> RunInspectGroovesJob(const LoadedJob& job, const RunOptions& opti
           m, spec.scan, spec.extraction, up.calibration,
           [&](int done, int) { progress.Update(done); }, options.cancel);
       if (!scanned.ok()) return finish(false, "scan: " + scanned.status().ToString());
+      ReportScanLight(scanned->stats, &report);
       report.metrics["points"] = static_cast<double>(scanned->cloud.size());
       const Status saved = geometry::SaveCloudPly(scanned->cloud, (dir / "cloud.ply").string());
       if (!saved.ok()) return finish(false, saved.ToString());

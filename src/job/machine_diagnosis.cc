@@ -484,6 +484,7 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
         machine, pass_scan, spec.scan.extraction, cal,
         [&](int done, int) { progress.Update(done); }, options.cancel);
     if (!scanned.ok()) return finish(false, scanned.status().ToString(), scanned.status().code());
+    ReportScanLight(scanned->stats, &report);  // each pass's; the last one's metrics stay
     Pass pass;
     pass.stage_z_mm = z;
     for (int i = 0; i < spec.scan.scan.line_count(); ++i) {

@@ -261,13 +261,17 @@ Result<double> FitScale(const Eigen::Vector2d& size_mm, double w, double h) {
   return scale;
 }
 
-// The item's vector pattern: its file, or its text laid out in a font.
-Result<pattern::VectorPattern> LoadVector(const PatternSpec& p) {
-  if (p.kind == "text") return pattern::RenderText(p.text, p.text_style);
-  if (p.kind == "svg") return pattern::LoadSvg(p.file);
-  if (p.kind == "dxf") return pattern::LoadDxf(p.file);
+// The item's vector pattern: its file, or its text laid out in a font, curves flattened to
+// within `tolerance_mm` in pattern units.
+Result<pattern::VectorPattern> LoadVector(const PatternSpec& p, double tolerance_mm) {
+  if (p.kind == "text") return pattern::RenderText(p.text, p.text_style, tolerance_mm);
+  if (p.kind == "svg") return pattern::LoadSvg(p.file, tolerance_mm);
+  if (p.kind == "dxf") return pattern::LoadDxf(p.file, tolerance_mm);
   return pattern::LoadHpgl(p.file);
 }
+
+// Curves are flattened to within 5 um on the part: in pattern units, that over the scale.
+constexpr double kFlattenMm = 0.005;
 
 // The pattern's segments in pattern mm (before placement); with placement.size_mm the item's
 // placement.scale is set here, from the pattern's extents. Vector outlines go through path
@@ -304,10 +308,8 @@ Result<std::vector<pattern::Segment2>> PatternSegments(ItemSpec* item, PathStats
     INSITU_ASSIGN_OR_RETURN(auto mask, pattern::DataMatrixMask(p.data));
     INSITU_RETURN_IF_ERROR(hatch_mask(mask));
   } else {
-    INSITU_ASSIGN_OR_RETURN(pattern::VectorPattern vec, LoadVector(p));
-    stats->texts = vec.texts;
-    stats->skipped = vec.skipped;
-    stats->warnings = vec.warnings;
+    INSITU_ASSIGN_OR_RETURN(pattern::VectorPattern vec,
+                            LoadVector(p, kFlattenMm / s.placement.scale));
     if (fit) {
       Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
       Eigen::Vector2d hi = -lo;
@@ -319,7 +321,14 @@ Result<std::vector<pattern::Segment2>> PatternSegments(ItemSpec* item, PathStats
       }
       INSITU_ASSIGN_OR_RETURN(s.placement.scale,
                               FitScale(s.size_mm, hi.x() - lo.x(), hi.y() - lo.y()));
+      // Enlarged: flattened again, finer, so the chords stay within 5 um on the part.
+      if (s.placement.scale > 1.0) {
+        INSITU_ASSIGN_OR_RETURN(vec, LoadVector(p, kFlattenMm / s.placement.scale));
+      }
     }
+    stats->texts = vec.texts;
+    stats->skipped = vec.skipped;
+    stats->warnings = vec.warnings;
     const double spacing = s.hatch_spacing_mm / s.placement.scale;
     bool closed = false;
     for (const auto& path : vec.paths) closed |= path.closed;
@@ -536,12 +545,23 @@ Result<std::vector<pattern::ListCommand>> Plan(
   }
   // What the drawings held and the job does not mark: never silent.
   report.metrics["pattern_texts"] = paths.texts;
+  // A kind each, up to 32 (a file may name any number of entity types): the rest as "other".
+  int kinds = 0, other = 0;
   for (const auto& [kind, n] : paths.skipped) {
+    if (++kinds > 32) {
+      other += n;
+      continue;
+    }
     report.metrics["pattern_skipped_" + kind] = n;
     report.warnings.push_back("pattern: " + std::to_string(n) + " " + kind +
                               (n == 1 ? " was" : " were") + " not drawn (not marked)");
   }
-  for (const std::string& w : paths.warnings) report.warnings.push_back("pattern " + w);
+  if (other > 0) {
+    report.metrics["pattern_skipped_other"] = other;
+    report.warnings.push_back("pattern: " + std::to_string(other) +
+                              " more entities of other kinds were not drawn (not marked)");
+  }
+  for (const std::string& w : paths.warnings) report.warnings.push_back(w);
   if (paths.input_points > 0) {
     report.metrics["path_points_in"] = paths.input_points;
     report.metrics["path_points_out"] = paths.mark_points;

@@ -36,8 +36,9 @@ Status WritePreview(const PatternInspection& in, const std::vector<pattern::Segm
                     const std::string& path) {
   const Eigen::Vector2d size = (in.hi - in.lo).cwiseMax(1e-3);
   // About 1200 px along the longer side, no more than 100 px per mm (a hatch 0.04 mm apart
-  // then still shows as lines on a small part), no fewer than 1 px per mm.
-  const double px_per_mm = std::clamp(1200.0 / std::max(size.x(), size.y()), 1.0, 100.0);
+  // then still shows as lines on a small part); a drawing of metres (or one read in the wrong
+  // units, which is what this is for) gets fewer.
+  const double px_per_mm = std::min(1200.0 / std::max(size.x(), size.y()), 100.0);
   const int margin = 40, footer = 60;
   const int w = static_cast<int>(std::ceil(size.x() * px_per_mm)) + 2 * margin;
   const int h = static_cast<int>(std::ceil(size.y() * px_per_mm)) + 2 * margin + footer;
@@ -94,14 +95,23 @@ Result<PatternInspection> InspectPattern(const std::string& path,
   }
   std::vector<pattern::Segment2> hatch;
   if (in.closed_paths > 0) {
+    // The hatch at the job's spacing, unless that is more than 200 000 lines across the
+    // drawing: then at the spacing that gives that many, its length scaled back (the area it
+    // measures is the same), and a note says so.
+    const double diagonal = (in.hi - in.lo).norm();
+    const double spacing = std::max(options.hatch_spacing_mm, diagonal / 200000.0);
+    if (spacing > options.hatch_spacing_mm) {
+      in.pattern.warnings.push_back("the hatch was measured at " + std::to_string(spacing) +
+                                    " mm spacing (the drawing spans " +
+                                    std::to_string(diagonal) + " mm): its length is scaled");
+    }
     for (double angle : options.hatch_angles_deg) {
-      INSITU_ASSIGN_OR_RETURN(auto lines,
-                              pattern::HatchPolygons(in.pattern, options.hatch_spacing_mm, angle));
+      INSITU_ASSIGN_OR_RETURN(auto lines, pattern::HatchPolygons(in.pattern, spacing, angle));
       double length = 0.0;
       for (const pattern::Segment2& s : lines) length += (s.b - s.a).norm();
-      in.hatch_length_mm += length;
+      in.hatch_length_mm += length * spacing / options.hatch_spacing_mm;
       // Each angle fills the same area: the first one measures it.
-      if (hatch.empty()) in.filled_area_mm2 = length * options.hatch_spacing_mm;
+      if (hatch.empty()) in.filled_area_mm2 = length * spacing;
       hatch.insert(hatch.end(), lines.begin(), lines.end());
     }
   }

@@ -50,6 +50,9 @@ Status ScanOptions::Validate() const {
         height_range_mm[1] > height_range_mm[0])) {
     return InvalidArgument("height_range_mm must be [low, high] with high > low");
   }
+  if (!(min_stripe_fraction >= 0 && min_stripe_fraction <= 1)) {
+    return InvalidArgument("min_stripe_fraction must be in [0, 1]");
+  }
   if (queue_frames < 1 || queue_frames > 1000) {
     return InvalidArgument("queue_frames must be in 1..1000, got " + std::to_string(queue_frames));
   }
@@ -63,15 +66,22 @@ int ScanOptions::line_count() const {
 
 namespace {
 
-// Which way the stripe of a line runs in the image, from the calibration: project both ends.
-vision::StripeDirection ExpectedDirection(const calib::CalibrationSet& cal,
-                                          const calib::CameraIntrinsics& cam,
-                                          const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
-  const Eigen::Vector2d pb = cam.Project(cal.galvo.camera_from_galvo * b);
-  const Eigen::Vector2d pc = cam.Project(cal.galvo.camera_from_galvo * c);
+// The extraction's options with kAuto resolved: which way the stripe of the scan's lines
+// runs in the (binned) image, from the calibration, the first line's ends projected.
+vision::StripeOptions Resolved(const vision::StripeOptions& stripe, const ScanOptions& o,
+                               const calib::CalibrationSet& cal) {
+  vision::StripeOptions out = stripe;
+  if (out.direction != vision::StripeDirection::kAuto) return out;
+  const calib::CameraIntrinsics cam = cal.camera.Binned(o.binning);
+  const double x = o.line_x(0);
+  const Eigen::Vector2d pb =
+      cam.Project(cal.galvo.camera_from_galvo * Eigen::Vector3d(x, o.y_start_mm, 0.0));
+  const Eigen::Vector2d pc =
+      cam.Project(cal.galvo.camera_from_galvo * Eigen::Vector3d(x, o.y_end_mm, 0.0));
   const Eigen::Vector2d d = pc - pb;
-  return std::abs(d.x()) >= std::abs(d.y()) ? vision::StripeDirection::kColumns
-                                            : vision::StripeDirection::kRows;
+  out.direction = std::abs(d.x()) >= std::abs(d.y()) ? vision::StripeDirection::kColumns
+                                                     : vision::StripeDirection::kRows;
+  return out;
 }
 
 }  // namespace
@@ -105,13 +115,7 @@ Result<std::unique_ptr<FrameProcessor>> FrameProcessor::Create(
   m.calibration = calibration;
   m.cam = calibration.camera.Binned(options.binning);
   m.galvo_from_camera = calibration.galvo.camera_from_galvo.inverse();
-  m.stripe_options = stripe;
-  if (m.stripe_options.direction == vision::StripeDirection::kAuto) {
-    const double x = options.line_x(0);
-    m.stripe_options.direction =
-        ExpectedDirection(calibration, m.cam, Eigen::Vector3d(x, options.y_start_mm, 0.0),
-                          Eigen::Vector3d(x, options.y_end_mm, 0.0));
-  }
+  m.stripe_options = Resolved(stripe, options, calibration);
   return p;
 }
 
@@ -296,22 +300,21 @@ constexpr double kExposurePercentile = 0.98;
 // Auto exposure: pre-shots on the first, middle and last lines (software trigger), each
 // rescaling the exposure by target / level until within 15 % of it (the sensor is linear:
 // stripe and room light both scale with the exposure). A percentile that saturates tells no
-// level: the exposure is cut by 3; no stripe at all: raised by 4 (up to 1 s).
-// Returns the exposure (ms) it set, and counts its frames in *shots.
+// level, nor does a frame without a stripe: the exposure is cut by 3 or raised by 4, or,
+// once both are known, set between them (geometric mean). It never goes above 8 times the
+// job's exposure: no stripe there is no stripe (a missing part, the pointer off), and the
+// job's exposure is kept. Not converging in 8 rounds keeps the last exposure whose level was
+// measured. *note says what went wrong, empty when it converged. Returns the exposure (ms)
+// it set, and counts its frames in *shots. Errors: the devices', cancelled.
 Result<double> AutoExpose(hw::Machine& machine, const ScanOptions& options,
                           const vision::StripeOptions& stripe_options,
-                          const calib::CalibrationSet& calibration, int* shots) {
+                          const calib::CalibrationSet& calibration,
+                          const std::atomic<bool>* cancel, int* shots, std::string* note) {
   const int n = options.line_count();
   std::vector<int> probe{0};
   if (n > 2) probe.push_back(n / 2);
   if (n > 1) probe.push_back(n - 1);
-  vision::StripeOptions so = stripe_options;
-  if (so.direction == vision::StripeDirection::kAuto) {
-    const double x = options.line_x(0);
-    so.direction = ExpectedDirection(calibration, calibration.camera.Binned(options.binning),
-                                     Eigen::Vector3d(x, options.y_start_mm, 0.0),
-                                     Eigen::Vector3d(x, options.y_end_mm, 0.0));
-  }
+  const vision::StripeOptions so = Resolved(stripe_options, options, calibration);
   std::unique_ptr<vision::StripeExtractor> extractor;
   int extractor_bits = 0;
   vision::StripeResult stripe;
@@ -320,8 +323,13 @@ Result<double> AutoExpose(hw::Machine& machine, const ScanOptions& options,
     ~PointerGuard() { (void)s->StopPointer(); }
   } guard{machine.scanner.get()};
   double exposure_ms = options.exposure_ms;
-  constexpr double kMinMs = 0.02, kMaxMs = 1000.0;
-  for (int round = 0; round < 6; ++round) {
+  const double kMinMs = 0.02, kMaxMs = std::min(1000.0, 8.0 * options.exposure_ms);
+  double too_dark = 0.0;                                      // the most with no stripe
+  double too_bright = std::numeric_limits<double>::infinity();  // the least that saturated
+  double measured = -1.0;  // the exposure the last measured level asked for
+  bool converged = false;
+  for (int round = 0; round < 8; ++round) {
+    if (cancel && cancel->load()) return Status(StatusCode::kCancelled, "scan cancelled");
     INSITU_RETURN_IF_ERROR(machine.camera->SetExposure(exposure_ms * 1e3).Prefixed("auto exposure"));
     std::vector<double> peaks;
     int64_t saturated = 0;
@@ -350,18 +358,23 @@ Result<double> AutoExpose(hw::Machine& machine, const ScanOptions& options,
     // Saturated columns are the brightest: they count at full scale.
     peaks.insert(peaks.end(), static_cast<size_t>(saturated), static_cast<double>(max_value));
     double next = exposure_ms;
-    if (peaks.size() < 10) {
-      next = exposure_ms * 4.0;  // no stripe to speak of
+    const auto between = [&] { return std::sqrt(too_dark * too_bright); };
+    if (peaks.size() < 10) {  // no stripe to speak of
+      too_dark = std::max(too_dark, exposure_ms);
+      next = std::isfinite(too_bright) ? between() : exposure_ms * 4.0;
     } else {
       const size_t k = static_cast<size_t>(kExposurePercentile * (peaks.size() - 1));
       std::nth_element(peaks.begin(), peaks.begin() + static_cast<ptrdiff_t>(k), peaks.end());
-      if (peaks[k] >= max_value) {
-        next = exposure_ms / 3.0;  // the percentile itself saturates: its level is unknown
+      if (peaks[k] >= max_value) {  // the percentile itself saturates: its level is unknown
+        too_bright = std::min(too_bright, exposure_ms);
+        next = too_dark > 0 ? between() : exposure_ms / 3.0;
       } else {
         const double factor = kExposureTarget * max_value / std::max(peaks[k], 1.0);
-        next = exposure_ms * factor;
+        next = std::clamp(exposure_ms * factor, kMinMs, kMaxMs);
+        measured = next;
         if (std::abs(factor - 1.0) < 0.15) {
-          exposure_ms = std::clamp(next, kMinMs, kMaxMs);
+          exposure_ms = next;
+          converged = true;
           break;
         }
       }
@@ -369,6 +382,21 @@ Result<double> AutoExpose(hw::Machine& machine, const ScanOptions& options,
     next = std::clamp(next, kMinMs, kMaxMs);
     if (next == exposure_ms) break;  // at the camera's or the scan's limit
     exposure_ms = next;
+  }
+  if (!converged) {
+    if (measured > 0) {
+      *note = "auto exposure did not settle in its pre-shots: " + std::to_string(measured) +
+              " ms, from the last stripe level it measured";
+      exposure_ms = measured;
+    } else if (std::isfinite(too_bright)) {
+      *note = "auto exposure: the stripe saturated down to " + std::to_string(too_bright) +
+              " ms; " + std::to_string(exposure_ms) + " ms is unmeasured";
+    } else {
+      *note = "auto exposure found no stripe in its pre-shots up to " +
+              std::to_string(too_dark) + " ms (no part under the first, middle and last lines?): " +
+              "kept the job's " + std::to_string(options.exposure_ms) + " ms";
+      exposure_ms = options.exposure_ms;
+    }
   }
   INSITU_RETURN_IF_ERROR(machine.camera->SetExposure(exposure_ms * 1e3).Prefixed("auto exposure"));
   return exposure_ms;
@@ -438,8 +466,9 @@ Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
 
   if (options.auto_exposure) {
     INSITU_ASSIGN_OR_RETURN(out.stats.exposure_ms,
-                            AutoExpose(machine, options, stripe_options, calibration,
-                                       &out.stats.auto_exposure_shots));
+                            AutoExpose(machine, options, stripe_options, calibration, cancel,
+                                       &out.stats.auto_exposure_shots,
+                                       &out.stats.exposure_note));
   }
   const int lines = options.line_count();
   // A camera wired to the head's trigger output exposes on the head's pulses: the head paces
@@ -606,27 +635,29 @@ Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
   if (progress) progress(lines, lines);
   // A scan that found the stripe in almost none of the columns its lines cover measured
   // nothing worth building on: say why here, not as a downstream symptom.
-  vision::StripeOptions resolved = stripe_options;
-  if (resolved.direction == vision::StripeDirection::kAuto) {
-    const double x = options.line_x(0);
-    resolved.direction = ExpectedDirection(calibration, calibration.camera.Binned(options.binning),
-                                           Eigen::Vector3d(x, options.y_start_mm, 0.0),
-                                           Eigen::Vector3d(x, options.y_end_mm, 0.0));
-  }
-  out.stats.expected_columns = ExpectedColumns(options, resolved, calibration);
+  out.stats.expected_columns =
+      ExpectedColumns(options, Resolved(stripe_options, options, calibration), calibration);
   const ScanStats& st = out.stats;
-  if (st.expected_columns > 0 && st.valid * 10 < st.expected_columns) {
+  if (st.expected_columns > 0 &&
+      static_cast<double>(st.valid) < options.min_stripe_fraction * st.expected_columns) {
     const std::string counts =
         "the scan found the stripe in " + std::to_string(st.valid) + " columns of about " +
         std::to_string(st.expected_columns) + " its lines cover (" +
         std::to_string(st.saturated) + " saturated, " + std::to_string(st.two_peaks) +
-        " with two peaks; exposure " + std::to_string(st.exposure_ms) + " ms)";
-    return DeviceError(
+        " with two peaks; exposure " + std::to_string(st.exposure_ms) + " ms" +
+        (options.auto_exposure ? ", by auto exposure" : "") +
+        "; scan.min_stripe_fraction " + std::to_string(options.min_stripe_fraction) + ")";
+    const std::string cure =
         st.saturated > st.valid
-            ? counts + ": the stripe saturates the camera: lower camera.exposure_ms or set "
-                       "camera.auto_exposure: true"
-            : counts + ": too dark, or no part under the lines: raise camera.exposure_ms, set "
-                       "camera.auto_exposure: true, or check where the part lies");
+            ? (options.auto_exposure ? ": the stripe saturates the camera: lower camera.gain_db"
+                                     : ": the stripe saturates the camera: lower "
+                                       "camera.exposure_ms or set camera.auto_exposure: true")
+            : (options.auto_exposure
+                   ? ": too dark, or no part under the lines: check where the part lies (a part "
+                     "much smaller than the lines: lower scan.min_stripe_fraction)"
+                   : ": too dark, or no part under the lines: raise camera.exposure_ms, set "
+                     "camera.auto_exposure: true, or check where the part lies");
+    return DeviceError(counts + cure);
   }
   return out;
 }

@@ -21,6 +21,7 @@ void ReadScanSection(ConfigReader& r, ScanOptions* s) {
   r.Read("queue_frames", &s->queue_frames);
   r.Read("region", &s->region);
   r.ReadArray("height_range_mm", s->height_range_mm.data(), 2);
+  r.Read("min_stripe_fraction", &s->min_stripe_fraction);
 }
 
 }  // namespace
@@ -91,6 +92,7 @@ void ReportScanLight(const ScanStats& st, Report* report) {
   // 1: the scan head's pulses exposed the lines (camera.head_trigger / lmc.trigger_port).
   m["camera_head_triggered"] = st.trigger == "head" ? 1.0 : 0.0;
   if (!st.region_note.empty()) report->warnings.push_back("camera region: " + st.region_note);
+  if (!st.exposure_note.empty()) report->warnings.push_back(st.exposure_note);
   // A saturated column's centre is lost (the plateau hides the peak): it matters once it is
   // more than a stray speckle grain, 1 % of the lit columns.
   if (st.saturated > 0 && st.saturated * 100 > st.valid + st.saturated) {
@@ -105,7 +107,8 @@ void ReportScanLight(const ScanStats& st, Report* report) {
     report->warnings.push_back(
         "the stripe was found in " + std::to_string(st.valid) + " of about " +
         std::to_string(st.expected_columns) +
-        " columns the lines cover: too dark, too steep, or not part of the part");
+        " columns the lines cover: too dark, too steep, or no part there (columns_none " +
+        std::to_string(st.none) + ")");
   }
 }
 

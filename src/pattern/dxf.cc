@@ -59,6 +59,7 @@
 #include <numeric>
 #include <set>
 #include <string>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -79,6 +80,20 @@ using Eigen::Vector3d;
 constexpr int kMaxBlockDepth = 32;
 constexpr int64_t kMaxArrayCopies = 100000;    // rows x columns of one INSERT
 constexpr int64_t kMaxEntityVisits = 1000000;  // entities drawn, counting each block copy
+
+// A point's cell on a grid of `size` (mm), for finding near points without comparing all
+// pairs. Coordinates are finite and bounded by the reader's range check; clamped anyway.
+std::pair<int64_t, int64_t> CellOf(const Eigen::Vector2d& p, double size) {
+  const auto cell = [&](double v) {
+    return static_cast<int64_t>(std::clamp(std::floor(v / size), -1e15, 1e15));
+  };
+  return {cell(p.x()), cell(p.y())};
+}
+struct CellHash {
+  size_t operator()(const std::pair<int64_t, int64_t>& c) const {
+    return std::hash<int64_t>()(c.first * 0x9E3779B97F4A7C15ull) ^ std::hash<int64_t>()(c.second);
+  }
+};
 constexpr int64_t kMaxPoints = 5000000;        // path vertices (80 MB)
 constexpr int kMaxSplineDegree = 25;
 constexpr size_t kMaxTextCache = 4096;
@@ -1744,6 +1759,15 @@ class DxfReader {
                                        std::to_string(kMaxArrayCopies) + ")")
                               .message());
       }
+      // Each copy counts as a visit whatever it holds: arrays of empty blocks nested in
+      // arrays would otherwise multiply calls without limit.
+      visits_ += static_cast<int64_t>(cols) * rows;
+      if (visits_ > kMaxEntityVisits) {
+        return OutOfRange(Error(a, "the drawing expands to more than " +
+                                       std::to_string(kMaxEntityVisits) +
+                                       " entities and block copies (nested block arrays?)")
+                              .message());
+      }
       const double dx = Num(a, b, 44, 0), dy = Num(a, b, 45, 0);
       const Affine3d placed =
           m * Ocs(a, b) * Translate(Point(a, b, 10)) * RotZ(Num(a, b, 50, 0) * kDeg);
@@ -1796,15 +1820,23 @@ class DxfReader {
       const auto& pts = outs_[open[e / 2]].path.points;
       return e % 2 == 0 ? pts.front() : pts.back();
     };
-    std::vector<size_t> order(n_ends);
-    std::iota(order.begin(), order.end(), 0);
-    std::sort(order.begin(), order.end(),
-              [&](size_t x, size_t y) { return end_point(x).x() < end_point(y).x(); });
+    // Ends meet within `tol`: a grid of tol-sized cells, each end compared with the ends of
+    // its cell and the 8 around it (linear in the ends however they line up; a sort on x
+    // alone compared a dashed vertical line's ends all against all).
     UnionFind uf(n_ends);
-    for (size_t s = 0; s < n_ends; ++s) {
-      const Vector2d& p = end_point(order[s]);
-      for (size_t t = s + 1; t < n_ends && end_point(order[t]).x() - p.x() <= tol; ++t) {
-        if ((end_point(order[t]) - p).norm() <= tol) uf.Join(order[s], order[t]);
+    std::unordered_map<std::pair<int64_t, int64_t>, std::vector<size_t>, CellHash> grid;
+    for (size_t e = 0; e < n_ends; ++e) grid[CellOf(end_point(e), tol)].push_back(e);
+    for (size_t e = 0; e < n_ends; ++e) {
+      const Vector2d& p = end_point(e);
+      const auto [cx, cy] = CellOf(p, tol);
+      for (int64_t gx = cx - 1; gx <= cx + 1; ++gx) {
+        for (int64_t gy = cy - 1; gy <= cy + 1; ++gy) {
+          const auto it = grid.find({gx, gy});
+          if (it == grid.end()) continue;
+          for (size_t f : it->second) {
+            if (f > e && (end_point(f) - p).norm() <= tol) uf.Join(e, f);
+          }
+        }
       }
     }
     std::vector<size_t> node(n_ends);
@@ -1884,9 +1916,24 @@ class DxfReader {
     auto near = [&](const Box& x, const Box& y) {
       return (x.lo - y.lo).cwiseAbs().maxCoeff() <= d && (x.hi - y.hi).cwiseAbs().maxCoeff() <= d;
     };
+    // Candidates by their boxes' lower corners on a grid of d-sized cells: a hatch is compared
+    // with the paths whose corner lies within a cell of its own (linear, where comparing
+    // every hatch with every path took seconds on an arrayed hatch block).
+    const double cell = std::max(d, 1e-9);
+    std::unordered_map<std::pair<int64_t, int64_t>, std::vector<size_t>, CellHash> by_corner;
+    for (size_t i = 0; i < outs_.size(); ++i) by_corner[CellOf(boxes[i].lo, cell)].push_back(i);
     for (size_t h = 0; h < outs_.size(); ++h) {
       if (outs_[h].role != Role::kHatch || outs_[h].dropped) continue;
-      for (size_t o = 0; o < outs_.size(); ++o) {
+      std::vector<size_t> candidates;
+      const auto [cx, cy] = CellOf(boxes[h].lo, cell);
+      for (int64_t gx = cx - 1; gx <= cx + 1; ++gx) {
+        for (int64_t gy = cy - 1; gy <= cy + 1; ++gy) {
+          const auto it = by_corner.find({gx, gy});
+          if (it != by_corner.end()) candidates.insert(candidates.end(), it->second.begin(), it->second.end());
+        }
+      }
+      std::sort(candidates.begin(), candidates.end());  // the first of two stays, as before
+      for (size_t o : candidates) {
         if (o == h || outs_[o].dropped || !outs_[o].path.closed || outs_[o].role == Role::kText) {
           continue;
         }

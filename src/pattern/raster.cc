@@ -1,6 +1,7 @@
 #include "insitu/pattern/raster.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -52,7 +53,10 @@ Result<Mask> DecodeRasterMask(const std::string& bytes, const std::string& path,
   const bool known = starts("\x89PNG\r\n\x1a\n") || starts("\xff\xd8\xff") || starts("BM") ||
                      starts(std::string_view("II*\0", 4)) ||
                      starts(std::string_view("MM\0*", 4)) ||
-                     (bytes.size() >= 2 && bytes[0] == 'P' && bytes[1] >= '1' && bytes[1] <= '6');
+                     // PNM: "P1".."P6" then whitespace, as OpenCV's PNM decoder checks (else
+                     // OpenCV would try its other decoders on it).
+                     (bytes.size() >= 3 && bytes[0] == 'P' && bytes[1] >= '1' && bytes[1] <= '6' &&
+                      std::isspace(static_cast<unsigned char>(bytes[2])));
   if (!known) {
     return InvalidArgument(path + ": not a PNG, JPEG, BMP, TIFF or PNM (PBM/PGM/PPM) image");
   }

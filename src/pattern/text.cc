@@ -57,6 +57,8 @@ namespace insitu::pattern {
 namespace {
 
 constexpr std::string_view kHersheyPrefix = "hershey:";
+// The most points one text may lay out: a page of 5 mm text is ~10^5.
+constexpr int64_t kMaxTextPoints = 2000000;
 constexpr char32_t kReplacement = 0xFFFD;
 // The Hershey body: 32 units from the deepest descender to the top of the tallest glyph; the
 // capitals of the Roman and Futura sets are 21 units high.
@@ -654,7 +656,10 @@ Result<VectorPattern> RenderText(const std::string& utf8, const TextStyle& style
   const double em_mm = font->em * mm_per_unit;
   const bool bend = style.arc_radius_mm != 0.0;
   // The tolerance is shared between flattening the curves and bending the baseline.
-  const double flatten_units = (bend ? 0.5 : 1.0) * tolerance_mm / mm_per_unit;
+  // No finer than 1e-4 em: far below any mark's spot on any size of text, and a bound on the
+  // chords a curve can take however small the tolerance asked for.
+  const double flatten_units =
+      std::max((bend ? 0.5 : 1.0) * tolerance_mm / mm_per_unit, 1e-4 * font->em);
 
   int invalid = 0;
   const std::vector<std::vector<char32_t>> lines = SplitLines(DecodeUtf8(utf8, &invalid));
@@ -667,6 +672,9 @@ Result<VectorPattern> RenderText(const std::string& utf8, const TextStyle& style
   std::vector<char32_t> missing;  // distinct, in order of appearance
   int missing_count = 0, drawn = 0;
   std::vector<double> widths;
+  // A text from a file may be long: its points are counted as they are laid out, and a text
+  // beyond kMaxTextPoints is refused before it takes the memory (a drawing's own limit is 5 M).
+  int64_t points = 0;
   for (size_t i = 0; i < lines.size(); ++i) {
     std::vector<Polyline> paths;
     double pen = 0.0;  // mm
@@ -682,6 +690,12 @@ Result<VectorPattern> RenderText(const std::string& utf8, const TextStyle& style
       }
       if (previous != nullptr) {
         pen += style.letter_spacing_mm + font->Kerning(*previous, g) * mm_per_unit;
+      }
+      for (const Polyline& contour : g.contours) points += static_cast<int64_t>(contour.points.size());
+      if (points > kMaxTextPoints) {
+        return OutOfRange("text: more than " + std::to_string(kMaxTextPoints) +
+                          " outline points (" + std::to_string(utf8.size()) +
+                          " bytes of text): split it, or use a coarser tolerance");
       }
       for (const Polyline& contour : g.contours) {
         Polyline p;

@@ -566,13 +566,8 @@ TEST(Dxf, DamagedFilesFailCleanly) {
 // on (100,40), aligned between (0,60) and (40,60), turned 90 degrees at (120,0), top-aligned at
 // (0,80), in an SHX style (romans.shx), mirrored (backward) at (150,0), one empty; an MTEXT of
 // two lines with inline codes at (0,140), height 3; an ATTRIB after an INSERT of a block whose
-// ATTDEF is a template. Needs RenderText; skipped while it is not built.
+// ATTDEF is a template.
 TEST(Dxf, Texts) {
-  auto probe = RenderText("A", TextStyle{});
-  if (!probe.ok() && probe.status().code() == StatusCode::kInternal) {
-    GTEST_SKIP() << "RenderText is not built yet (" << probe.status().message()
-                 << "): the DXF text placement tests need it";
-  }
   auto p = LoadDxf(DataPath("text_r2000.dxf"));
   ASSERT_TRUE(p.ok()) << p.status().ToString();
   EXPECT_EQ(Count(p->converted, "text"), 8);
@@ -624,10 +619,6 @@ TEST(Dxf, Texts) {
 // twin), \P line breaks, \S a stacked fraction (drawn inline, approximately). Bottom-left
 // attachment (71 = 7) puts the last baseline on the point, the lines 5/3 cap heights apart.
 TEST(Dxf, MtextInlineCodes) {
-  auto probe = RenderText("A", TextStyle{});
-  if (!probe.ok() && probe.status().code() == StatusCode::kInternal) {
-    GTEST_SKIP() << "RenderText is not built yet (" << probe.status().message() << ")";
-  }
   auto p = ParseDxf(Dxf({{0, "MTEXT"}, {10, "0"}, {20, "0"}, {30, "0"}, {40, "2.5"}, {71, "7"},
                          {1, "{\\Fromans.shx;AB}\\PCD\\P\\S1/2;"}}),
                     "m.dxf");

@@ -527,11 +527,6 @@ TEST(Svg, UnitsLengthsAndViewports) {
   ExpectBox(nested->paths[0], 10, 30, -30, -10);
 }
 
-// RenderText is another engineer's work in progress; until it is built it says kInternal.
-bool TextRendererBuilt() {
-  return RenderText("H", TextStyle{}).status().code() != StatusCode::kInternal;
-}
-
 // DejaVu Sans: cap height 1493 / 2048 em (its 'H' spans y 0..1493), 'H' advance 1540 and side
 // bearings 201 / 2048 em on either side. The glyphs are flattened within 5 um, and their
 // straight stems and bars put the extremes on vertices: held to 0.5 % (0.04 mm at 10 mm).
@@ -540,7 +535,6 @@ constexpr double kAdvanceEm = 1540.0 / 2048.0;
 constexpr double kBearingEm = 201.0 / 2048.0;
 
 TEST(Svg, TextGlyphsHaveTheCapHeightAndAnchors) {
-  if (!TextRendererBuilt()) GTEST_SKIP() << "RenderText is still a placeholder (kInternal)";
   auto p = LoadSvg(DataPath("text.svg"));
   ASSERT_TRUE(p.ok()) << p.status().ToString();
   EXPECT_EQ(p->texts, 3);
@@ -569,7 +563,6 @@ TEST(Svg, TextGlyphsHaveTheCapHeightAndAnchors) {
 }
 
 TEST(Svg, TextLinesFontListAndRuns) {
-  if (!TextRendererBuilt()) GTEST_SKIP() << "RenderText is still a placeholder (kInternal)";
   auto p = LoadSvg(DataPath("text_lines.svg"));
   ASSERT_TRUE(p.ok()) << p.status().ToString();
   EXPECT_EQ(p->texts, 2);

@@ -33,6 +33,10 @@ struct ScanOptions {
   // exposure_ms: the line's length, the part's albedo and the room light all change how
   // bright the stripe is (a short line is swept more often per exposure).
   bool auto_exposure = false;
+  // A scan that finds the stripe in fewer than this fraction of the columns its lines cover
+  // fails, saying whether it saturated or was too dark (0: never). A part much smaller than
+  // the lines on a table the camera cannot see needs a lower one.
+  double min_stripe_fraction = 0.1;
   double gain_db = 0.0;
   int binning = 1;
   // 1: camera + light plane (seed 000 method 1); 2: method 1's ray, height from the
@@ -68,6 +72,7 @@ struct ScanStats {
   std::string trigger;               // "software" (a grab per line) or "head" (its pulses)
   double exposure_ms = 0.0;          // the exposure the lines were taken at
   int auto_exposure_shots = 0;       // pre-shot frames auto exposure took (0: off)
+  std::string exposure_note;         // auto exposure did not settle, and what it kept
   // Columns (rows) the lines cover in the image, from the calibration: what a part filling
   // the lines would give. A scan with centres in under a tenth of them fails.
   int64_t expected_columns = 0;

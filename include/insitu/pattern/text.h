@@ -52,7 +52,8 @@ struct TextStyle {
 // `units` "mm". Errors: invalid_argument (style, tolerance, empty text, an arc too small for
 // the lines below the first), not_found (no font at all: fontconfig finds none, or the Hershey
 // font's file is missing; the message lists the installed ones), parse_error (a damaged
-// Hershey font file).
+// Hershey font file), out_of_range (a text of more than 2 million outline points). Curves are
+// flattened no finer than 1e-4 em, whatever `tolerance_mm` asks.
 Result<VectorPattern> RenderText(const std::string& utf8, const TextStyle& style,
                                  double tolerance_mm = 0.005);
 
