@@ -13,6 +13,8 @@ fi
 cd ..
 # The fuzz targets for a short fixed time (when clang is installed).
 scripts/fuzz.sh
+# The readers of outside files and their tests under AddressSanitizer and UBSan.
+scripts/asan.sh
 # The Debian package built in build-pkg/ and checked: its binaries and its daemon run from the
 # extracted package (scripts/package.sh; ccache makes the second build mostly links).
 scripts/package.sh
