@@ -289,6 +289,12 @@ std::pair<int, int> StripeBand(const ScanOptions& o, const vision::StripeOptions
   return {first, last - first};
 }
 
+// Stops the pointer when it goes out of scope: a scan's way out, whichever it takes.
+struct PointerOff {
+  hw::Scanner* scanner;
+  ~PointerOff() { (void)scanner->StopPointer(); }
+};
+
 // The stripe's brightness target for auto exposure: the 98th percentile of the lit columns'
 // peaks at 60 % of full scale. Speckle (contrast ~0.2) spreads the columns' peaks and the
 // lines between the pre-shot ones may be brighter (a crown, a steeper face toward the
@@ -318,10 +324,7 @@ Result<double> AutoExpose(hw::Machine& machine, const ScanOptions& options,
   std::unique_ptr<vision::StripeExtractor> extractor;
   int extractor_bits = 0;
   vision::StripeResult stripe;
-  struct PointerGuard {
-    hw::Scanner* s;
-    ~PointerGuard() { (void)s->StopPointer(); }
-  } guard{machine.scanner.get()};
+  const PointerOff pointer_off{machine.scanner.get()};
   double exposure_ms = options.exposure_ms;
   const double kMinMs = 0.02, kMaxMs = std::min(1000.0, 8.0 * options.exposure_ms);
   double too_dark = 0.0;                                      // the most with no stripe
@@ -464,20 +467,21 @@ Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
     }
   }
 
-  if (options.auto_exposure) {
-    INSITU_ASSIGN_OR_RETURN(out.stats.exposure_ms,
-                            AutoExpose(machine, options, stripe_options, calibration, cancel,
-                                       &out.stats.auto_exposure_shots,
-                                       &out.stats.exposure_note));
-  }
   const int lines = options.line_count();
   // A camera wired to the head's trigger output exposes on the head's pulses: the head paces
   // the scan, and the lines always stream (the head does not wait for the processing).
+  // Refused before any pre-shot is taken.
   const bool triggered = machine.camera->head_triggered();
   if (triggered && !machine.scanner->info().trigger_output) {
     return FailedPrecondition(
         "the camera is triggered by the scan head, but the head has no trigger output "
         "(machine.lmc.trigger_port names the board's output wired to the camera)");
+  }
+  if (options.auto_exposure) {
+    INSITU_ASSIGN_OR_RETURN(out.stats.exposure_ms,
+                            AutoExpose(machine, options, stripe_options, calibration, cancel,
+                                       &out.stats.auto_exposure_shots,
+                                       &out.stats.exposure_note));
   }
   const bool streaming = options.streaming || triggered;
   // Streaming: one thread processes the frames in line order while this one takes the next.
@@ -608,10 +612,8 @@ Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
     head.join();
     if (!head_status.ok()) return stop(head_status.Prefixed("scan head"));
   } else {
-    struct PointerGuard {  // the pointer never keeps running after the scan, whatever happens
-      hw::Scanner* s;
-      ~PointerGuard() { (void)s->StopPointer(); }
-    } guard{machine.scanner.get()};
+    // The pointer never keeps running after the scan, whatever happens.
+    const PointerOff pointer_off{machine.scanner.get()};
     out.stats.trigger = "software";
     for (int i = 0; i < lines; ++i) {
       if (cancel && cancel->load()) return stop(Status(StatusCode::kCancelled, "scan cancelled"));

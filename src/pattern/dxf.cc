@@ -1122,24 +1122,31 @@ class DxfReader {
     std::vector<Vector2d> v;
     std::vector<double> bulge;
     bool wide = Num(a, b, 43, 0) > 0;
-    for (size_t k = a + 1; k < b; ++k) {
-      const Group& g = groups_[k];
-      if (g.code == 10) {
-        v.emplace_back(g.num, 0.0);
-        bulge.push_back(0.0);
-      } else if (g.code == 20 && !v.empty()) {
-        v.back().y() = g.num;
-      } else if (g.code == 42 && !v.empty()) {
-        bulge.back() = g.num;
-      } else if ((g.code == 40 || g.code == 41) && g.num > 0) {
-        wide = true;
-      }
-    }
+    BulgedVertices(a + 1, b, &v, &bulge, &wide);
     const bool closed = (Int(a, b, 70, 0) & 1) != 0;
     Emit(Lift(Bulged(v, bulge, closed, LocalTol(me)), Num(a, b, 38, 0)), me, closed, Role::kCurve);
     NoteWidth(wide);
     Count("lwpolyline");
     return Status::Ok();
+  }
+
+  // The vertices (10/20) and bulges (42) of groups [from, to), as LWPOLYLINE and a HATCH's
+  // polyline loop list them; `wide`, if given, set by a nonzero width (40/41).
+  void BulgedVertices(size_t from, size_t to, std::vector<Vector2d>* v,
+                      std::vector<double>* bulge, bool* wide) const {
+    for (size_t k = from; k < to; ++k) {
+      const Group& g = groups_[k];
+      if (g.code == 10) {
+        v->emplace_back(g.num, 0.0);
+        bulge->push_back(0.0);
+      } else if (g.code == 20 && !v->empty()) {
+        v->back().y() = g.num;
+      } else if (g.code == 42 && !v->empty()) {
+        bulge->back() = g.num;
+      } else if (wide != nullptr && (g.code == 40 || g.code == 41) && g.num > 0) {
+        *wide = true;
+      }
+    }
   }
 
   // POLYLINE followed by VERTEX entities up to SEQEND (b .. next).
@@ -1322,17 +1329,7 @@ class DxfReader {
       if (ToInt(groups_[la].num) & 2) {
         std::vector<Vector2d> v;
         std::vector<double> bulge;
-        for (size_t k = la + 1; k < lb; ++k) {
-          const Group& g = groups_[k];
-          if (g.code == 10) {
-            v.emplace_back(g.num, 0.0);
-            bulge.push_back(0.0);
-          } else if (g.code == 20 && !v.empty()) {
-            v.back().y() = g.num;
-          } else if (g.code == 42 && !v.empty()) {
-            bulge.back() = g.num;
-          }
-        }
+        BulgedVertices(la + 1, lb, &v, &bulge, nullptr);
         loop = Bulged(v, bulge, true, tol);
       } else {
         // The source handles end the loop; a spline edge's fit data may hold a 97 of its own.

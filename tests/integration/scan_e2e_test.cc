@@ -21,14 +21,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-job::ScanOptions FastScan() {
-  job::ScanOptions o;
-  o.x_start_mm = -9.5;
-  o.x_end_mm = 9.5;
-  o.line_spacing_mm = 1.0;
-  o.binning = 2;
-  return o;
-}
+using testing::FastScan;
 
 // With a calibration equal to the true camera, method 1's only model error is the light
 // plane: the seed puts its apex at the Y mirror (H = 355 mm), while the f-theta objective

@@ -22,14 +22,7 @@
 namespace insitu {
 namespace {
 
-job::ScanOptions FastScan() {
-  job::ScanOptions o;
-  o.x_start_mm = -9.5;
-  o.x_end_mm = 9.5;
-  o.line_spacing_mm = 1.0;
-  o.binning = 2;
-  return o;
-}
+using testing::FastScan;
 
 Result<job::ScanOutput> Scan(hw::Machine& machine, const sim::WorldOptions& world,
                              const job::ScanOptions& o = FastScan()) {

@@ -4,10 +4,22 @@
 #pragma once
 
 #include "insitu/calib/calibration.h"
+#include "insitu/job/scan.h"
 #include "insitu/sim/camera_model.h"
 #include "insitu/sim/world_options.h"
 
 namespace insitu::testing {
+
+// The step gauge's 20 lines 1 mm apart on binned 2x2 frames: the scan the default suite
+// affords end to end.
+inline job::ScanOptions FastScan() {
+  job::ScanOptions o;
+  o.x_start_mm = -9.5;
+  o.x_end_mm = 9.5;
+  o.line_spacing_mm = 1.0;
+  o.binning = 2;
+  return o;
+}
 
 inline calib::CalibrationSet PerfectCalibration(const sim::WorldOptions& world) {
   const sim::CameraModel cam(world.camera);
