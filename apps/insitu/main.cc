@@ -6,14 +6,14 @@
 //   insitu cor export TABLE.csv --lens MM [--format jcz|lmc1] [--reading R] --out FILE.cor
 // Exit codes: 0 done, 1 device or job failure while running (the report says what), 2 bad input
 // (command line, job file, --set, calibration, pattern or data file), 130 interrupted.
-#include <CLI/CLI.hpp>
 #include <poll.h>
 #include <termios.h>
 #include <unistd.h>
 
+#include <CLI/CLI.hpp>
 #include <algorithm>
-#include <cerrno>
 #include <atomic>
+#include <cerrno>
 #include <csignal>
 #include <cstdio>
 #include <cstring>
@@ -128,11 +128,11 @@ int Run(const std::string& job_path, const std::string& out_dir,
   return 0;
 }
 
-int Diagnose(const std::string& csv, const std::string& out_dir) {
+int Diagnose(const std::string& csv, const std::string& out_dir, const std::string& reading) {
   const std::string out = out_dir.empty()
                               ? "insitu-out/diagnose-" + std::filesystem::path(csv).stem().string()
                               : out_dir;
-  auto d = insitu::job::RunDiagnose(csv, out);
+  auto d = insitu::job::RunDiagnose(csv, out, {}, reading);
   if (!d.ok()) {
     std::fprintf(stderr, "insitu: %s\n", d.status().message().c_str());
     return ExitCodeFor(d.status());
@@ -170,15 +170,17 @@ int PatternInspect(const std::string& file, const std::string& out_dir,
 // An LMC board's .cor file as insitu's field correction table (head.correction), and back.
 // Import reads the file the way the two-mirror head model explains best (fit/cor_physics.h),
 // unless `reading_code` forces one; export writes the table as --reading says, else as the
-// CSV's "# reading:" comment (written by import) says, else in the default reading.
+// CSV's "# reading:" comment (written by import) says, else in the documented convention for
+// the board (swap_xy: which word drives the first mirror).
 int CorImport(const std::string& cor_path, const std::string& out,
               const std::string& reading_code) {
   namespace lmc = insitu::hw::lmc;
   auto read = insitu::job::ReadCorByPhysics(cor_path, reading_code);
   if (!read.ok()) {
     std::fprintf(stderr, "insitu: %s\n", read.status().message().c_str());
-    return read.status().code() == insitu::StatusCode::kInvalidArgument ? 2
-                                                                         : ExitCodeFor(read.status());
+    return read.status().code() == insitu::StatusCode::kInvalidArgument
+               ? 2
+               : ExitCodeFor(read.status());
   }
   const std::vector<lmc::CorReading>& readings = read->readings;
   const insitu::fit::CorReadingChoice* choice = &read->choice;
@@ -200,28 +202,31 @@ int CorImport(const std::string& cor_path, const std::string& out,
   for (size_t k = 0; k < order.size(); ++k) order[k] = static_cast<int>(k);
   std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return pct(a) > pct(b); });
   for (int k : order) {
-    std::printf("  %6.1f %%  %s (--reading %s)\n", pct(k), readings[k].Name().c_str(),
+    std::printf("  %6.1f %% (beyond affine %6.1f %%)  %s (--reading %s)\n", pct(k),
+                100.0 * choice->fits[k].explained_nonlinear, readings[k].Name().c_str(),
                 readings[k].Code().c_str());
   }
+  if (!read->evidence.empty()) std::printf("%s\n", read->evidence.c_str());
+  if (!read->wiring.empty()) std::printf("%s\n", read->wiring.c_str());
   if (forced < 0 && !choice->warning.empty()) {
     std::printf("warning: %s\n", choice->warning.c_str());
   }
-  if (forced >= 0 && forced != choice->best && choice->decided_by_physics) {
-    std::printf("warning: the head model explains %s better (%.1f %%)\n",
-                readings[choice->best].Name().c_str(), pct(choice->best));
+  if (forced >= 0 && choice->chosen >= 0 && forced != choice->chosen) {
+    std::printf("warning: the evidence reads the table as %s (%.1f %%)\n",
+                readings[choice->chosen].Name().c_str(), pct(choice->chosen));
   }
   return 0;
 }
 
 int CorExport(const std::string& table_path, double lens_mm, const std::string& format,
-              const std::string& reading_code, const std::string& out) {
+              const std::string& reading_code, bool swap_xy, const std::string& out) {
   namespace lmc = insitu::hw::lmc;
   auto table = insitu::pattern::CorrectionTable::Load(table_path);
   if (!table.ok()) {
     std::fprintf(stderr, "insitu: %s\n", table.status().message().c_str());
     return ExitCodeFor(table.status());
   }
-  lmc::CorReading reading;
+  lmc::CorReading reading = lmc::DocumentedReading(swap_xy);
   if (!reading_code.empty()) {
     auto r = lmc::ParseCorReading(reading_code);
     if (!r.ok()) {
@@ -277,9 +282,9 @@ int main(int argc, char** argv) {
       ->take_all()
       ->allow_extra_args(false);
 
-  CLI::App* diagnose = app.add_subcommand(
-      "diagnose",
-      "what the galvo model gets wrong in field data (measured CSV, correction CSV or .cor), and why");
+  CLI::App* diagnose = app.add_subcommand("diagnose",
+                                          "what the galvo model gets wrong in field data (measured "
+                                          "CSV, correction CSV or .cor), and why");
   std::string csv_path, diag_out;
   diagnose
       ->add_option("data", csv_path,
@@ -287,6 +292,10 @@ int main(int argc, char** argv) {
                    "CSV (x_mm, y_mm, dx_mm, dy_mm) or an EzCad .cor file")
       ->required();
   diagnose->add_option("--out", diag_out, "output folder (default insitu-out/diagnose-<name>)");
+  std::string diag_reading;
+  diagnose->add_option("--reading", diag_reading,
+                       "a .cor file: read it as this (e.g. dx-dy,y-major,--) instead of as the "
+                       "head model and the documented convention decide");
 
   CLI::App* cor = app.add_subcommand("cor", "EzCad .cor correction files of LMC galvo boards");
   cor->require_subcommand(1);
@@ -295,8 +304,8 @@ int main(int argc, char** argv) {
   cor_import->add_option("file", cor_in, ".cor file (JCZ_COR_2_1 or LMC1COR_1.0)")->required();
   cor_import->add_option("--out", cor_out, "field correction CSV to write")->required();
   cor_import->add_option("--reading", import_reading,
-                         "read the file as this (e.g. dy-dx,x-major,++) instead of as the head "
-                         "model explains best");
+                         "read the file as this (e.g. dx-dy,y-major,--) instead of as the head "
+                         "model and the documented convention decide");
   CLI::App* cor_export = cor->add_subcommand("export", "insitu's field table (CSV) as a .cor file");
   std::string table_in, cor_file, cor_format = "jcz";
   double lens_mm = 0.0;
@@ -307,15 +316,21 @@ int main(int argc, char** argv) {
   cor_export->add_option("--format", cor_format, "jcz (JCZ_COR_2_1) or lmc1 (LMC1COR_1.0)")
       ->check(CLI::IsMember({"jcz", "lmc1"}));
   cor_export->add_option("--reading", export_reading,
-                         "store the table as this (e.g. dy-dx,x-major,++); default: the CSV's "
-                         "'# reading:' comment (cor import writes it), else dx-dy,x-major,++");
+                         "store the table as this (e.g. dx-dy,y-major,--); default: the CSV's "
+                         "'# reading:' comment (cor import writes it), else the documented "
+                         "convention for the board (--swap-xy)");
+  bool export_swap_xy = false;
+  cor_export->add_flag("--swap-xy", export_swap_xy,
+                       "the board's lmc.swap_xy: its second axis word drives galvo x, the first "
+                       "mirror (for the documented convention)");
   cor_export->add_option("--out", cor_file, ".cor file to write")->required();
 
   CLI::App* pattern = app.add_subcommand("pattern", "vector drawings (SVG, DXF, HPGL) to mark");
   pattern->require_subcommand(1);
   CLI::App* inspect = pattern->add_subcommand(
-      "inspect", "what a drawing will mark: extents, units, entities drawn and skipped, closed "
-                 "areas, and preview.png with the hatch at scale");
+      "inspect",
+      "what a drawing will mark: extents, units, entities drawn and skipped, closed "
+      "areas, and preview.png with the hatch at scale");
   std::string inspect_file, inspect_out;
   insitu::job::PatternInspectOptions inspect_options;
   inspect->add_option("file", inspect_file, ".svg, .dxf or .plt/.hpgl drawing")->required();
@@ -323,8 +338,9 @@ int main(int argc, char** argv) {
                       "folder for preview.png (default insitu-out/pattern-<name>)");
   inspect->add_option("--scale", inspect_options.scale, "as the mark job's placement.scale")
       ->check(CLI::PositiveNumber);
-  inspect->add_option("--hatch-spacing", inspect_options.hatch_spacing_mm,
-                      "mm on the part, as the mark job's hatch.spacing_mm (default 0.04)")
+  inspect
+      ->add_option("--hatch-spacing", inspect_options.hatch_spacing_mm,
+                   "mm on the part, as the mark job's hatch.spacing_mm (default 0.04)")
       ->check(CLI::PositiveNumber);
   inspect->add_option("--hatch-angles", inspect_options.hatch_angles_deg,
                       "degrees, as the mark job's hatch.angles_deg (default 0)");
@@ -343,11 +359,11 @@ int main(int argc, char** argv) {
     std::signal(SIGTERM, OnSignal);
     return Run(job_path, out_dir, sets);
   }
-  if (diagnose->parsed()) return Diagnose(csv_path, diag_out);
+  if (diagnose->parsed()) return Diagnose(csv_path, diag_out, diag_reading);
   if (inspect->parsed()) return PatternInspect(inspect_file, inspect_out, inspect_options);
   if (cor_import->parsed()) return CorImport(cor_in, cor_out, import_reading);
   if (cor_export->parsed()) {
-    return CorExport(table_in, lens_mm, cor_format, export_reading, cor_file);
+    return CorExport(table_in, lens_mm, cor_format, export_reading, export_swap_xy, cor_file);
   }
   return 2;
 }

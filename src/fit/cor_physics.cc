@@ -13,15 +13,14 @@
 
 #include <ceres/ceres.h>
 
-#include "fit/ceres_support.h"
-#include "insitu/optics/newton.h"
-
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 
+#include "fit/ceres_support.h"
+#include "insitu/optics/newton.h"
 #include "insitu/optics/scan_head.h"
 
 namespace insitu::fit {
@@ -199,8 +198,9 @@ Status CorPhysicsOptions::Validate() const {
   }
   if (max_iterations < 1) return InvalidArgument("max_iterations must be >= 1");
   if (stride < 1) return InvalidArgument("stride must be >= 1");
-  if (!(min_explained <= 1.0) || !(ambiguous_margin >= 0.0)) {
-    return InvalidArgument("min_explained must be <= 1 and ambiguous_margin >= 0");
+  if (!(min_explained <= 1.0) || !(min_explained_nonlinear <= 1.0) || !(ambiguous_margin >= 0.0)) {
+    return InvalidArgument(
+        "min_explained and min_explained_nonlinear must be <= 1 and ambiguous_margin >= 0");
   }
   return Status::Ok();
 }
@@ -285,57 +285,109 @@ Result<CorTableFit> ExplainCorrectionTable(const std::vector<Vector2d>& node_mm,
   }
   fit.residual_rms_mm = std::sqrt(r2 / node_mm.size());
   fit.explained = 1.0 - fit.residual_rms_mm / fit.table_rms_mm;
+  // What is beyond an affine map: the table less its least-squares affine part.
+  Eigen::MatrixXd a(node_mm.size(), 3);
+  Eigen::MatrixXd b(node_mm.size(), 2);
+  for (size_t k = 0; k < node_mm.size(); ++k) {
+    a.row(k) << node_mm[k].x(), node_mm[k].y(), 1.0;
+    b.row(k) = offset_mm[k].transpose();
+  }
+  const Eigen::MatrixXd beyond = b - a * a.colPivHouseholderQr().solve(b);
+  fit.nonlinear_rms_mm = std::sqrt(beyond.squaredNorm() / node_mm.size());
+  fit.explained_nonlinear =
+      fit.nonlinear_rms_mm > 0 ? 1.0 - fit.residual_rms_mm / fit.nonlinear_rms_mm : 0.0;
   return fit;
 }
 
 Result<CorReadingChoice> ChooseCorReading(const std::vector<CorReadingCandidate>& candidates,
-                                          int default_index, const CorPhysicsOptions& options) {
+                                          const CorPhysicsOptions& options) {
   if (candidates.empty()) return InvalidArgument("no readings of the correction table to choose");
-  if (default_index < 0 || default_index >= static_cast<int>(candidates.size())) {
-    return InvalidArgument("the default reading " + std::to_string(default_index) +
-                           " is not one of the " + std::to_string(candidates.size()));
-  }
   CorReadingChoice choice;
   for (const CorReadingCandidate& c : candidates) {
     auto fit = ExplainCorrectionTable(c.node_mm, c.offset_mm, options);
     if (!fit.ok()) return fit.status().Prefixed(c.name);
     choice.fits.push_back(*fit);
   }
-  std::vector<int> order(candidates.size());
-  for (size_t k = 0; k < order.size(); ++k) order[k] = static_cast<int>(k);
+  const int n = static_cast<int>(candidates.size());
+  std::vector<int> order(n);
+  for (int k = 0; k < n; ++k) order[k] = k;
   // Best first; equal explained fractions keep the candidates' order.
   std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
     return choice.fits[a].explained > choice.fits[b].explained;
   });
   choice.best = order[0];
-  choice.runner_up = order.size() > 1 ? order[1] : -1;
-  choice.chosen = default_index;
+  choice.runner_up = n > 1 ? order[1] : -1;
   const CorTableFit& best = choice.fits[choice.best];
-  const auto pct = [](double f) {
+  const auto pct = [&](int k) {
     char s[32];
-    std::snprintf(s, sizeof s, "%.1f %%", 100.0 * f);
+    std::snprintf(s, sizeof s, "%.1f %%", 100.0 * choice.fits[k].explained);
     return std::string(s);
   };
+  const auto named = [&](int k) { return candidates[k].name + " (" + pct(k) + ")"; };
+  std::vector<int> documented;
+  for (int k : order) {
+    if (candidates[k].documented) documented.push_back(k);
+  }
   if (best.table_rms_mm == 0.0) {
-    choice.warning = "every offset is zero: any reading gives the same table";
+    // Every reading gives the same table: none contradicts the documented convention.
+    choice.chosen = documented.empty() ? order[0] : documented[0];
+    choice.decided_by_convention = !documented.empty();
+    choice.evidence = "every offset is zero: every reading gives the same table";
     return choice;
   }
-  if (best.explained < options.min_explained) {
-    choice.warning = "the two-mirror head model explains at most " + pct(best.explained) +
-                     " of the table (" + candidates[choice.best].name +
-                     "): too little to choose a reading by; kept " + candidates[default_index].name;
+  // An affine table (nothing beyond the affine map but rounding) has no distortion to judge
+  // by: the readings that explain it tie, and the convention decides among them.
+  const bool affine = best.nonlinear_rms_mm < 1e-3 * best.table_rms_mm;
+  if (best.explained < options.min_explained ||
+      (!affine && best.explained_nonlinear < options.min_explained_nonlinear)) {
+    char beyond[64];
+    std::snprintf(beyond, sizeof beyond, "%.1f %%", 100.0 * best.explained_nonlinear);
+    choice.evidence = "the two-mirror head model explains at most " + named(choice.best) +
+                      " of the table, " + beyond +
+                      " of what is not affine (a scale, shear, turn or shift fits any "
+                      "reading): too little to choose a reading by";
+    choice.warning = choice.evidence;
     return choice;
   }
-  if (choice.runner_up >= 0 &&
-      best.explained - choice.fits[choice.runner_up].explained < options.ambiguous_margin) {
-    choice.warning = "the data cannot tell " + candidates[choice.best].name + " (" +
-                     pct(best.explained) + ") from " + candidates[choice.runner_up].name + " (" +
-                     pct(choice.fits[choice.runner_up].explained) + "); kept " +
-                     candidates[default_index].name;
+  for (int k : order) {
+    if (best.explained - choice.fits[k].explained < options.ambiguous_margin) {
+      choice.tied.push_back(k);
+    }
+  }
+  if (choice.tied.size() == 1) {
+    choice.chosen = choice.best;
+    choice.decided_by_physics = true;
+    choice.evidence = "the two-mirror head model: " + pct(choice.best) + " against " +
+                      named(choice.runner_up) + " for the next";
+    if (!candidates[choice.best].documented && !documented.empty()) {
+      choice.warning =
+          "the physics reads the table as " + candidates[choice.best].name +
+          ", not in the format's documented convention (best of those: " + named(documented[0]) +
+          ")";
+    }
     return choice;
   }
-  choice.chosen = choice.best;
-  choice.decided_by_physics = true;
+  std::string tied_names;
+  std::vector<int> tied_documented;
+  for (int k : choice.tied) {
+    tied_names += (tied_names.empty() ? "" : ", ") + named(k);
+    if (candidates[k].documented) tied_documented.push_back(k);
+  }
+  char margin[32];
+  std::snprintf(margin, sizeof margin, "%.0f", 100.0 * options.ambiguous_margin);
+  const std::string cannot_tell = "the two-mirror head model cannot tell " + tied_names +
+                                  " apart (within " + margin + " points)";
+  if (tied_documented.size() == 1) {
+    choice.chosen = tied_documented[0];
+    choice.decided_by_convention = true;
+    choice.evidence = cannot_tell + "; of them only " + candidates[choice.chosen].name +
+                      " is the format's documented convention";
+    return choice;
+  }
+  choice.evidence = cannot_tell + (tied_documented.empty()
+                                       ? ", and none of them is the format's documented convention"
+                                       : ", and more than one of them is documented");
+  choice.warning = choice.evidence;
   return choice;
 }
 

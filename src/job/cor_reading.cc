@@ -38,6 +38,7 @@ Result<CorByPhysics> ReadCorByPhysics(const std::string& path, const std::string
   for (const lmc::CorReading& reading : r.readings) {
     fit::CorReadingCandidate c;
     c.name = reading.Name();
+    c.documented = lmc::IsDocumentedReading(reading);
     for (int i = 0; i < 65; ++i) {
       for (int j = 0; j < 65; ++j) {
         c.node_mm.push_back(r.cor.NodeMm(i, j));
@@ -48,10 +49,19 @@ Result<CorByPhysics> ReadCorByPhysics(const std::string& path, const std::string
   }
   fit::CorPhysicsOptions options;
   options.lens_mm = r.cor.lens_mm();
-  auto choice = fit::ChooseCorReading(candidates, 0, options);
+  auto choice = fit::ChooseCorReading(candidates, options);
   if (!choice.ok()) return choice.status().Prefixed(path);
   r.choice = std::move(*choice);
   r.forced = forced >= 0;
+  if (!r.forced && r.choice.chosen < 0) {
+    // Nothing decides: refuse, naming what the user can choose from.
+    std::string codes;
+    const std::vector<int>& named =
+        r.choice.tied.empty() ? std::vector<int>{r.choice.best} : r.choice.tied;
+    for (int k : named) codes += (codes.empty() ? "" : " or ") + r.readings[k].Code();
+    return InvalidArgument(path + ": the reading of the table cannot be decided: " +
+                           r.choice.evidence + "; name it with --reading (" + codes + ")");
+  }
   r.used = r.forced ? forced : r.choice.chosen;
   const auto pct = [&](int k) { return 100.0 * r.choice.fits[k].explained; };
   int next = -1;  // the best reading other than the one used
@@ -65,6 +75,14 @@ Result<CorByPhysics> ReadCorByPhysics(const std::string& path, const std::string
                 r.used == r.choice.best ? "next best" : "best", r.readings[next].Name().c_str(),
                 pct(next));
   r.summary = what;
+  if (!r.forced) r.evidence = "why this reading: " + r.choice.evidence;
+  if (lmc::IsDocumentedReading(r.readings[r.used])) {
+    r.wiring = lmc::FirstMirrorOnWord2(r.readings[r.used])
+                   ? "the head's first mirror is on the board's second axis word: insitu's "
+                     "galvo x (the first mirror) needs lmc.swap_xy: true on this board"
+                   : "the head's first mirror is on the board's first axis word: insitu's "
+                     "galvo x (the first mirror) needs lmc.swap_xy: false on this board";
+  }
   return r;
 }
 

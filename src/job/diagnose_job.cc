@@ -80,11 +80,13 @@ void DrawPanel(vision::Canvas& img, const Box& area, const fit::FieldData& data,
 
 }  // namespace
 
-Result<fit::FieldData> LoadDiagnoseData(const std::string& path, std::string* source) {
+Result<fit::FieldData> LoadDiagnoseData(const std::string& path, std::string* source,
+                                        const std::string& cor_reading) {
   const std::string ext = std::filesystem::path(path).extension().string();
   if (ext == ".cor" || ext == ".COR") {
-    INSITU_ASSIGN_OR_RETURN(CorByPhysics cor, ReadCorByPhysics(path));
-    *source = "EzCad .cor table, " + cor.summary;
+    INSITU_ASSIGN_OR_RETURN(CorByPhysics cor, ReadCorByPhysics(path, cor_reading));
+    *source =
+        "EzCad .cor table, " + cor.summary + (cor.evidence.empty() ? "" : "; ") + cor.evidence;
     return FieldDataFromCorrection(cor.Nodes(), cor.Offsets(), path);
   }
   std::ifstream in(path);
@@ -117,9 +119,10 @@ Result<fit::FieldData> LoadDiagnoseData(const std::string& path, std::string* so
 }
 
 Result<fit::Diagnosis> RunDiagnose(const std::string& csv_path, const std::string& out_dir,
-                                   const fit::DiagnoseOptions& options) {
+                                   const fit::DiagnoseOptions& options,
+                                   const std::string& cor_reading) {
   std::string source;
-  INSITU_ASSIGN_OR_RETURN(fit::FieldData data, LoadDiagnoseData(csv_path, &source));
+  INSITU_ASSIGN_OR_RETURN(fit::FieldData data, LoadDiagnoseData(csv_path, &source, cor_reading));
   INSITU_ASSIGN_OR_RETURN(fit::Diagnosis d, fit::Diagnose(data, options));
   d.notes.insert(d.notes.begin(), "source: " + source);
   std::error_code ec;

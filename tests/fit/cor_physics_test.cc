@@ -3,8 +3,8 @@
 // lens distortion, both axes tilted, zero offsets and scale errors, stored in a known
 // convention. The fit must explain the right reading (>= 95 %, the design brief's bar for
 // simulated heads with lens distortion and tilts) and the 15 wrong ones clearly less; a table
-// of noise is explained not at all, and a table the readings cannot be told apart by keeps
-// the default.
+// of noise is explained not at all and decides nothing, and among readings the physics cannot
+// tell apart the documented one decides, or nothing does.
 #include "insitu/fit/cor_physics.h"
 
 #include <gtest/gtest.h>
@@ -145,9 +145,10 @@ TEST(CorPhysics, ChoosesTheReadingTheHeadExplains) {
                                  Convention{true, false, false, true}}) {
     SCOPED_TRACE(truth.Name());
     const std::vector<CorReadingCandidate> readings = AllReadings(Store(t, truth), lens);
-    auto choice = ChooseCorReading(readings, 0, o);
+    auto choice = ChooseCorReading(readings, o);
     ASSERT_TRUE(choice.ok()) << choice.status().ToString();
     Print(readings, *choice);
+    ASSERT_GE(choice->chosen, 0) << choice->warning;
     ASSERT_EQ(readings[choice->chosen].name, truth.Name());
     EXPECT_TRUE(choice->decided_by_physics);
     EXPECT_TRUE(choice->warning.empty()) << choice->warning;
@@ -174,30 +175,33 @@ TEST(CorPhysics, ChoosesTheReadingTheHeadExplains) {
 }
 
 // A table of noise: nothing to explain. 20 um per component, what a careless measurement of
-// an already corrected head gives; the head explains none of it in any reading, and the
-// default reading is kept.
+// an already corrected head gives; the head explains none of it in any reading, and nothing
+// decides a reading (not even the documented one: the table does not say it is a table).
 TEST(CorPhysics, NoiseIsUnexplained) {
   const double lens = 110.0;
   std::mt19937 rng(3);
   std::normal_distribution<double> noise(0.0, 0.02);
   std::vector<Vector2d> stored;
   for (int n = 0; n < kNodes * kNodes; ++n) stored.emplace_back(noise(rng), noise(rng));
-  const std::vector<CorReadingCandidate> readings = AllReadings(stored, lens);
+  std::vector<CorReadingCandidate> readings = AllReadings(stored, lens);
+  readings[3].documented = true;
   CorPhysicsOptions o;
   o.lens_mm = lens;
-  auto choice = ChooseCorReading(readings, 0, o);
+  auto choice = ChooseCorReading(readings, o);
   ASSERT_TRUE(choice.ok()) << choice.status().ToString();
   Print(readings, *choice);
   // ~12 parameters fitted to 289 nodes of independent noise take sqrt(12 / 578) ~ 14 % of
   // the rms there at most, and nothing at the other 3936 nodes: |explained| below 2 %.
   for (const CorTableFit& f : choice->fits) EXPECT_LT(std::abs(f.explained), 0.02);
-  EXPECT_EQ(choice->chosen, 0);
+  EXPECT_EQ(choice->chosen, -1);
   EXPECT_FALSE(choice->decided_by_physics);
+  EXPECT_FALSE(choice->decided_by_convention);
   EXPECT_NE(choice->warning.find("explains at most"), std::string::npos) << choice->warning;
 }
 
 // A table that holds only a scale error per axis: any reading that flips signs is the same
-// scale with other gains, so the readings cannot be told apart, and the default is kept.
+// scale with other gains, so the physics cannot tell the readings apart. One documented
+// reading among them decides; none, or two, decide nothing (never a fallback).
 TEST(CorPhysics, ALinearTableCannotTellReadingsApart) {
   const double lens = 110.0;
   std::vector<Vector2d> stored;
@@ -210,12 +214,33 @@ TEST(CorPhysics, ALinearTableCannotTellReadingsApart) {
   std::vector<CorReadingCandidate> readings = AllReadings(stored, lens);
   CorPhysicsOptions o;
   o.lens_mm = lens;
-  auto choice = ChooseCorReading(readings, 5, o);
+  auto choice = ChooseCorReading(readings, o);
   ASSERT_TRUE(choice.ok()) << choice.status().ToString();
   Print(readings, *choice);
-  EXPECT_EQ(choice->chosen, 5);
+  EXPECT_EQ(choice->chosen, -1);
   EXPECT_FALSE(choice->decided_by_physics);
+  EXPECT_GE(choice->tied.size(), 2u);
   EXPECT_NE(choice->warning.find("cannot tell"), std::string::npos) << choice->warning;
+  EXPECT_NE(choice->warning.find("none of them is the format's documented"), std::string::npos)
+      << choice->warning;
+  // One of the tied readings documented (the last, not the best: the convention decides, not
+  // the order) decides.
+  const int k = choice->tied.back();
+  readings[k].documented = true;
+  choice = ChooseCorReading(readings, o);
+  ASSERT_TRUE(choice.ok());
+  EXPECT_EQ(choice->chosen, k);
+  EXPECT_TRUE(choice->decided_by_convention);
+  EXPECT_TRUE(choice->warning.empty()) << choice->warning;
+  EXPECT_NE(choice->evidence.find("only " + readings[k].name), std::string::npos)
+      << choice->evidence;
+  // Two documented readings the physics cannot tell apart: nothing decides.
+  for (int k : choice->tied) readings[k].documented = true;
+  choice = ChooseCorReading(readings, o);
+  ASSERT_TRUE(choice.ok());
+  EXPECT_EQ(choice->chosen, -1);
+  EXPECT_NE(choice->warning.find("more than one of them is documented"), std::string::npos)
+      << choice->warning;
   // All zero: nothing to explain, no error.
   for (Vector2d& v : readings[0].offset_mm) v.setZero();
   auto zero = ExplainCorrectionTable(readings[0].node_mm, readings[0].offset_mm, o);
@@ -235,9 +260,7 @@ TEST(CorPhysics, BadInputIsRefused) {
   EXPECT_NE(nan.status().message().find("node 19"), std::string::npos) << nan.status().message();
   o.lens_mm = 0.0;
   EXPECT_EQ(ExplainCorrectionTable(nodes, nodes, o).status().code(), StatusCode::kInvalidArgument);
-  EXPECT_EQ(ChooseCorReading({}, 0, CorPhysicsOptions{}).status().code(),
-            StatusCode::kInvalidArgument);
-  EXPECT_EQ(ChooseCorReading({CorReadingCandidate{}}, 1, CorPhysicsOptions{}).status().code(),
+  EXPECT_EQ(ChooseCorReading({}, CorPhysicsOptions{}).status().code(),
             StatusCode::kInvalidArgument);
 }
 

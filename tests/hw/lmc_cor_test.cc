@@ -75,6 +75,7 @@ std::vector<fit::CorReadingCandidate> Candidates(const CorFile& cor) {
   for (const CorReading& r : AllCorReadings()) {
     fit::CorReadingCandidate c;
     c.name = r.Code();
+    c.documented = IsDocumentedReading(r);
     for (int i = 0; i < 65; ++i) {
       for (int j = 0; j < 65; ++j) {
         c.node_mm.push_back(cor.NodeMm(i, j));
@@ -94,8 +95,9 @@ constexpr double kLens = 163.0;
 TEST(LmcCor, TheHeadModelReadsASimulatedHeadsTableInItsConvention) {
   const SimLmcHead head;
   const auto correction = [&](double x, double y) { return head.Correction(x, y); };
-  // glase's pair order; the default (meerk40t's); and one no source names.
-  for (const char* code : {"dy-dx,x-major,++", "dx-dy,x-major,++", "dx-dy,y-major,-+"}) {
+  // The documented convention (both transpositions); meerk40t's; and one no source names.
+  for (const char* code :
+       {"dy-dx,x-major,--", "dx-dy,y-major,--", "dx-dy,x-major,++", "dx-dy,y-major,-+"}) {
     for (const CorFormat format : {CorFormat::kJcz2, CorFormat::kLmc1}) {
       SCOPED_TRACE(std::string(code) + (format == CorFormat::kJcz2 ? " jcz" : " lmc1"));
       const auto known = ParseCorReading(code);
@@ -107,7 +109,7 @@ TEST(LmcCor, TheHeadModelReadsASimulatedHeadsTableInItsConvention) {
       const std::vector<fit::CorReadingCandidate> candidates = Candidates(*cor);
       fit::CorPhysicsOptions options;
       options.lens_mm = cor->lens_mm();
-      const auto choice = fit::ChooseCorReading(candidates, 0, options);
+      const auto choice = fit::ChooseCorReading(candidates, options);
       ASSERT_TRUE(choice.ok()) << choice.status().ToString();
       for (size_t k = 0; k < candidates.size(); ++k) {
         std::printf("  %-18s %6.2f %%\n", candidates[k].name.c_str(),
@@ -268,8 +270,8 @@ TEST(LmcCor, MalformedFilesAreNamed) {
   CorFile small;
   small.offsets.resize(10);
   EXPECT_EQ(WriteCor(path, small).code(), StatusCode::kInvalidArgument);
-  CorFile huge =
-      FromCorrection([](double, double) { return Vector2d(100.0, 0.0); }, 110.0, CorFormat::kJcz2);
+  CorFile huge = FromCorrection([](double, double) { return Vector2d(100.0, 0.0); }, 110.0,
+                                CorFormat::kJcz2, DocumentedReading(false));
   EXPECT_EQ(WriteCor(path, huge).code(), StatusCode::kOutOfRange);
 }
 

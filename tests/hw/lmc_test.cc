@@ -138,11 +138,20 @@ TEST(Lmc, ATriggeredSweepRaisesTheTriggerBitOncePerLine) {
     return std::make_pair(static_cast<uint16_t>(kJumpTo), u);
   };
   const std::vector<std::pair<uint16_t, std::array<uint16_t, 2>>> expected{
-      jump(units(-10, 0)), {kDelayTime, {500, 0}},   {kWritePortList, {0x0102, 0}},
-      {kDelayTime, {10, 0}}, {kWritePortList, {0x0100, 0}}, jump(units(10, 0)),
-      jump(units(6, 0)),   jump(units(10, 1)),     {kDelayTime, {500, 0}},
-      {kWritePortList, {0x0102, 0}}, {kDelayTime, {10, 0}}, {kWritePortList, {0x0100, 0}},
-      jump(units(-10, 1)), jump(units(-6, 1))};
+      jump(units(-10, 0)),
+      {kDelayTime, {500, 0}},
+      {kWritePortList, {0x0102, 0}},
+      {kDelayTime, {10, 0}},
+      {kWritePortList, {0x0100, 0}},
+      jump(units(10, 0)),
+      jump(units(6, 0)),
+      jump(units(10, 1)),
+      {kDelayTime, {500, 0}},
+      {kWritePortList, {0x0102, 0}},
+      {kDelayTime, {10, 0}},
+      {kWritePortList, {0x0100, 0}},
+      jump(units(-10, 1)),
+      jump(units(-6, 1))};
   ASSERT_EQ(body.size(), expected.size()) << text;
   for (size_t k = 0; k < body.size(); ++k) {
     EXPECT_EQ(body[k][0], expected[k].first) << "command " << k << "\n" << text;
@@ -209,18 +218,21 @@ TEST(Lmc, CorrectionExportAndImport) {
   const auto bulge = [](double x, double y) {
     return Eigen::Vector2d(2e-6 * x * (x * x + y * y), 2e-6 * y * (x * x + y * y));
   };
-  const CorFile cor = FromCorrection(bulge, 163.0, CorFormat::kJcz2);
+  const CorReading reading = DocumentedReading(false);
+  const CorFile cor = FromCorrection(bulge, 163.0, CorFormat::kJcz2, reading);
   const std::string path = (std::filesystem::temp_directory_path() / "insitu_bulge.cor").string();
   ASSERT_TRUE(WriteCor(path, cor).ok());
   const auto back = ReadCor(path);
   ASSERT_TRUE(back.ok());
-  const std::string csv = ToCorrectionCsv(*back);
-  // Node (64, 64) is the field's corner: 81.5 mm on both axes.
+  const std::string csv = ToCorrectionCsv(*back, reading);
+  // Node (64, 64) is the field's corner: 81.5 mm on both axes. Stored as the documented
+  // convention has it: the error the board subtracts, the negated offset.
   const Eigen::Vector2d corner = back->NodeMm(64, 64);
   EXPECT_NEAR(corner.x(), 81.5, 1e-9);
   const auto& o = back->offsets[64 * 65 + 64];
   const double unit_mm = 163.0 / 65536;
-  EXPECT_NEAR(o[0] / back->scale, bulge(81.5, 81.5).x(), 0.5 * unit_mm);
+  EXPECT_NEAR(-o[0] / back->scale, bulge(81.5, 81.5).x(), 0.5 * unit_mm);
+  EXPECT_NEAR(back->OffsetMm(64, 64, reading).y(), bulge(81.5, 81.5).y(), 0.5 * unit_mm);
   EXPECT_NE(csv.find("x_mm,y_mm,dx_mm,dy_mm"), std::string::npos);
 }
 

@@ -1,13 +1,13 @@
 // The operator's command line: bad input gets one clear line naming the file, key or line and
 // a non-zero exit; nothing is written for a job that never started.
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
-
-#include <gtest/gtest.h>
 
 namespace {
 
@@ -70,17 +70,21 @@ TEST(Cli, UnknownKeyIsNamed) {
 }
 
 TEST(Cli, OutOfRangeValuesAreNamed) {
-  const CliRun exposure = Insitu("run " + Job() + " --set camera.exposure_ms=-5 --out /tmp/insitu_cli");
+  const CliRun exposure =
+      Insitu("run " + Job() + " --set camera.exposure_ms=-5 --out /tmp/insitu_cli");
   EXPECT_EQ(exposure.exit_code, 2);
   EXPECT_NE(exposure.err.find("exposure_ms"), std::string::npos) << exposure.err;
   EXPECT_EQ(Lines(exposure.err), 1) << exposure.err;
-  const CliRun spacing = Insitu("run " + Job() + " --set scan.line_spacing_mm=0 --out /tmp/insitu_cli");
+  const CliRun spacing =
+      Insitu("run " + Job() + " --set scan.line_spacing_mm=0 --out /tmp/insitu_cli");
   EXPECT_EQ(spacing.exit_code, 2);
   EXPECT_NE(spacing.err.find("line_spacing_mm"), std::string::npos) << spacing.err;
-  const CliRun world = Insitu("run " + Job() + " --set world.camera.f_number=0 --out /tmp/insitu_cli");
+  const CliRun world =
+      Insitu("run " + Job() + " --set world.camera.f_number=0 --out /tmp/insitu_cli");
   EXPECT_EQ(world.exit_code, 2);
   EXPECT_NE(world.err.find("f_number"), std::string::npos) << world.err;
-  const CliRun type = Insitu("run " + Job() + " --set scan.speed_mm_per_s=fast --out /tmp/insitu_cli");
+  const CliRun type =
+      Insitu("run " + Job() + " --set scan.speed_mm_per_s=fast --out /tmp/insitu_cli");
   EXPECT_EQ(type.exit_code, 2);
   EXPECT_NE(type.err.find("scan.speed_mm_per_s"), std::string::npos) << type.err;
 }
@@ -95,7 +99,7 @@ TEST(Cli, BadSetSyntaxAndUnknownJobKind) {
 
 TEST(Cli, CalibrationForAnotherCameraIsRefused) {
   const CliRun r = Insitu("run " + Job() + " --set world.camera.width_px=2592 " +
-                       "--set world.camera.height_px=1944 --out /tmp/insitu_cli");
+                          "--set world.camera.height_px=1944 --out /tmp/insitu_cli");
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("2592"), std::string::npos) << r.err;
 }
@@ -107,39 +111,43 @@ namespace {
 // A mark job around a pattern section (YAML, indented two spaces under `pattern:`).
 std::string MarkJobWith(const std::string& name, const std::string& pattern,
                         const std::string& extra = "") {
-  return WriteJob(name, "job: mark\nmachine: {backend: sim, calibration: " + std::string(INSITU_SOURCE_DIR) +
-                            "/calib/as_designed.yaml}\nworld: " +
-                            std::string(INSITU_SOURCE_DIR) + "/config/worlds/default.yaml\n" +
-                            "pattern:\n" + pattern + extra);
+  return WriteJob(
+      name, "job: mark\nmachine: {backend: sim, calibration: " + std::string(INSITU_SOURCE_DIR) +
+                "/calib/as_designed.yaml}\nworld: " + std::string(INSITU_SOURCE_DIR) +
+                "/config/worlds/default.yaml\n" + "pattern:\n" + pattern + extra);
 }
 
 // A bad pattern fails before the machine moves: one line naming the job, the pattern and the
 // problem, exit 2, nothing scanned.
 TEST(Cli, MarkJobRefusesBadPatterns) {
   const std::string png = WriteJob("corrupt.png", "this is not an image");
-  const CliRun corrupt = Insitu(
-      "run " + MarkJobWith("m1.yaml", "  kind: raster\n  file: " + png + "\n") + " --out /tmp/insitu_cli");
+  const CliRun corrupt =
+      Insitu("run " + MarkJobWith("m1.yaml", "  kind: raster\n  file: " + png + "\n") +
+             " --out /tmp/insitu_cli");
   EXPECT_EQ(corrupt.exit_code, 2);
   EXPECT_NE(corrupt.err.find("corrupt.png"), std::string::npos) << corrupt.err;
   EXPECT_NE(corrupt.err.find("pattern"), std::string::npos) << corrupt.err;
   EXPECT_EQ(Lines(corrupt.err), 1) << corrupt.err;
 
   const std::string svg = WriteJob("empty.svg", "<svg xmlns=\"http://www.w3.org/2000/svg\"></svg>");
-  const CliRun empty = Insitu(
-      "run " + MarkJobWith("m2.yaml", "  kind: svg\n  file: " + svg + "\n") + " --out /tmp/insitu_cli");
+  const CliRun empty =
+      Insitu("run " + MarkJobWith("m2.yaml", "  kind: svg\n  file: " + svg + "\n") +
+             " --out /tmp/insitu_cli");
   EXPECT_EQ(empty.exit_code, 2);
   EXPECT_NE(empty.err.find("empty.svg"), std::string::npos) << empty.err;
 
-  const CliRun mapping = Insitu("run " + MarkJobWith("m3.yaml", "  kind: qr\n  data: x\n",
-                                                     "placement: {mapping: bend}\n") +
-                                " --out /tmp/insitu_cli");
+  const CliRun mapping = Insitu(
+      "run " + MarkJobWith("m3.yaml", "  kind: qr\n  data: x\n", "placement: {mapping: bend}\n") +
+      " --out /tmp/insitu_cli");
   EXPECT_EQ(mapping.exit_code, 2);
   EXPECT_NE(mapping.err.find("mapping"), std::string::npos) << mapping.err;
 
-  const std::string items = WriteJob("items.yaml",
-      "job: mark\nmachine: {backend: sim, calibration: " + std::string(INSITU_SOURCE_DIR) +
-                            "/calib/as_designed.yaml}\nworld: " + std::string(INSITU_SOURCE_DIR) +
-      "/config/worlds/default.yaml\nitems: [{pattern: {kind: qr, data: x}, hatch: {spacing_mm: -1}}]\n");
+  const std::string items =
+      WriteJob("items.yaml",
+               "job: mark\nmachine: {backend: sim, calibration: " + std::string(INSITU_SOURCE_DIR) +
+                   "/calib/as_designed.yaml}\nworld: " + std::string(INSITU_SOURCE_DIR) +
+                   "/config/worlds/default.yaml\nitems: [{pattern: {kind: qr, data: x}, hatch: "
+                   "{spacing_mm: -1}}]\n");
   const CliRun item = Insitu("run " + items + " --out /tmp/insitu_cli");
   EXPECT_EQ(item.exit_code, 2);
   EXPECT_NE(item.err.find("spacing_mm"), std::string::npos) << item.err;
@@ -166,7 +174,8 @@ TEST(Cli, DiagnoseTheMeasuredFieldAndRefuseBadData) {
   }
   EXPECT_TRUE(fs::exists(out / "residuals.png"));
 
-  const std::string bad = WriteJob("bad_field.csv", "x_cmd_mm,y_cmd_mm,x_meas_mm,y_meas_mm\n0,0,0,0\n1,0,one,0\n");
+  const std::string bad =
+      WriteJob("bad_field.csv", "x_cmd_mm,y_cmd_mm,x_meas_mm,y_meas_mm\n0,0,0,0\n1,0,one,0\n");
   const CliRun r = Insitu("diagnose " + bad + " --out " + out.string());
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("bad_field.csv:3"), std::string::npos) << r.err;
@@ -178,9 +187,11 @@ TEST(Cli, DiagnoseTheMeasuredFieldAndRefuseBadData) {
 
 namespace {
 
-// An LMC board's correction in and out: insitu's table exported as a .cor file reads back as
-// the same field (to the JCZ format's whole units, 1.7 um on a 110 mm lens); a file that is
-// not a .cor is named.
+// An LMC board's correction in and out: insitu's table exported as a .cor file (in the
+// documented convention) reads back as the same field (to the JCZ format's whole units, 1.7 um
+// on a 110 mm lens) when the reading is named (four arbitrary nodes: not a head's table, whose
+// reading the physics could show); a table of noise is not read by guess: the import refuses
+// and names --reading. A file that is not a .cor is named.
 TEST(Cli, CorFilesExportAndImport) {
   const fs::path dir = fs::temp_directory_path() / "insitu_cli_cor";
   fs::create_directories(dir);
@@ -192,7 +203,30 @@ TEST(Cli, CorFilesExportAndImport) {
   const std::string back = (dir / "field.csv").string();
   ASSERT_EQ(Insitu("cor export " + table + " --lens 110 --out " + cor).exit_code, 0);
   EXPECT_EQ(fs::file_size(cor), 33840u);
-  ASSERT_EQ(Insitu("cor import " + cor + " --out " + back).exit_code, 0);
+  {
+    // Noise of 20 um on a 5 x 5 grid: no head in it.
+    std::string noise = "x_mm,y_mm,dx_mm,dy_mm\n";
+    unsigned state = 7;
+    const auto next = [&] {
+      return static_cast<int>(((state = state * 1103515245u + 12345u) >> 8) % 41) - 20;
+    };
+    for (int j = 0; j < 5; ++j) {
+      for (int i = 0; i < 5; ++i) {
+        noise += std::to_string(-50 + 25 * i) + "," + std::to_string(-50 + 25 * j) + "," +
+                 std::to_string(next() * 1e-3) + "," + std::to_string(next() * 1e-3) + "\n";
+      }
+    }
+    const std::string noise_csv = WriteJob("insitu_cli_cor_noise.csv", noise);
+    const std::string noise_cor = (dir / "noise.cor").string();
+    const std::string noise_back = (dir / "noise_back.csv").string();
+    ASSERT_EQ(Insitu("cor export " + noise_csv + " --lens 110 --out " + noise_cor).exit_code, 0);
+    const CliRun guess = Insitu("cor import " + noise_cor + " --out " + noise_back);
+    EXPECT_EQ(guess.exit_code, 2);
+    EXPECT_NE(guess.err.find("cannot be decided"), std::string::npos) << guess.err;
+    EXPECT_NE(guess.err.find("--reading"), std::string::npos) << guess.err;
+    EXPECT_FALSE(fs::exists(noise_back));
+  }
+  ASSERT_EQ(Insitu("cor import " + cor + " --reading dx-dy,y-major,-- --out " + back).exit_code, 0);
   std::ifstream f(back);
   std::string line;
   int nodes = 0;

@@ -1,9 +1,9 @@
 // insitu diagnose reads field tables from any source (job/diagnose_job.h, LoadDiagnoseData): an
 // EzCad .cor file generated from a simulated head driven linearly (the simulator's optics with
-// f-theta distortion, tilted axes, zero offsets and gain errors), stored in a convention that is
-// not the default; the same table as a correction CSV; and measured field data. The .cor is read
-// the way the head explains it, and the diagnosis names the physical head first and explains
-// >= 95 % of the held-out error.
+// f-theta distortion, tilted axes, zero offsets and gain errors), stored in the documented
+// convention of a board whose second word drives the first mirror; the same table as a
+// correction CSV; and measured field data. The .cor is read the way the head explains it, and
+// the diagnosis names the physical head first and explains >= 95 % of the held-out error.
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -43,8 +43,8 @@ TEST(DiagnoseSources, ACorTableIsReadByPhysicsAndPutOnTheHead) {
   const fs::path dir = fs::temp_directory_path() / "insitu_diagnose_sources";
   fs::remove_all(dir);
   fs::create_directories(dir);
-  // Stored as glase documents it: pair (dy, dx), x-major.
-  auto reading = hw::lmc::ParseCorReading("dy-dx,x-major,++");
+  // Stored as glase documents it: pair (dy, dx), x-major, the error the board subtracts.
+  auto reading = hw::lmc::ParseCorReading("dy-dx,x-major,--");
   ASSERT_TRUE(reading.ok()) << reading.status().ToString();
   const hw::lmc::CorFile cor =
       hw::lmc::FromCorrection(Needed, 110.0, hw::lmc::CorFormat::kJcz2, *reading);

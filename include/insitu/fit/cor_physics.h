@@ -28,10 +28,20 @@
 // than no correction at all.
 //
 // Readings: the same stored numbers read in different conventions are different candidate
-// tables in the galvo frame (hw/lmc_cor.h builds them). ChooseCorReading fits each and picks
-// the one the head explains best, unless that is not clear (the best explains less than
-// `min_explained`, or the next best is within `ambiguous_margin` of it): then it keeps the
-// caller's default reading and says why.
+// tables in the galvo frame (hw/lmc_cor.h builds them). ChooseCorReading fits each and decides:
+// - nothing, when the best reading explains less than `min_explained` of the table or less
+//   than `min_explained_nonlinear` of its part beyond an affine map (an affine table fits any
+//   reading whose flips the gains and the turn absorb: only the distortion can show a
+//   reading);
+// - the physics alone, when every other reading is more than `ambiguous_margin` below the
+//   best;
+// - else, when several readings are within the margin of the best (they differ by a symmetry
+//   the table shows only weakly, below), the format's documented convention among them: if
+//   exactly one of them is `documented`, it is chosen, and the choice says both pieces of
+//   evidence;
+// - else nothing decides: `chosen` is -1 and the warning names the candidates. Never a
+//   default the table contradicts.
+// A table whose offsets are all zero is the same in every reading: the documented one.
 //
 // What the physics can tell apart. The head's distortion has a fixed shape and sign: the
 // field angle of the X mirror (first) is seen by the Y mirror, so X bows as a pincushion and Y
@@ -43,8 +53,15 @@
 //   mirror is on y: the model fixes the X mirror first (insitu's galvo frame), so these are
 //   told apart only through that convention; a board whose x axis drives the second mirror
 //   comes out as the transposed reading (set the board's swap_xy to match);
+// - node order, pair order and both signs changed together (the table transposed and
+//   negated) is told apart only weakly: the transposition swaps which mirror is first, the
+//   negation turns the pincushion into a barrel, and together they come back to a first-X
+//   pincushion but with the lens's radial term of the other sign; what is left is a sixth of
+//   the two-mirror term, which a table made by a tool other than the exact physics (EzCad's
+//   tables are built quadrant by quadrant) can hide. Real tables (four public EzCad tables)
+//   put such twins within 1-4 points of each other; the documented convention decides them;
 // - a table that holds only a linear field (scale, rotation, offset) fits every reading whose
-//   sign flips the gains absorb: not told apart (the margin rule keeps the default);
+//   sign flips the gains absorb: not told apart by the physics;
 // - a radially symmetric table (lens distortion only) is told apart from its transposed and
 //   its negated reading only by the two-mirror term: weakly, for a long focal length.
 //
@@ -90,9 +107,13 @@ struct CorPhysicsOptions {
   // always over all nodes. 4: 17 x 17 of a 65 x 65 table, 16 readings in ~1 s, explained
   // fractions within 1 point of stride 2's (tests/fit/cor_physics_test.cc's table).
   int stride = 4;
-  // ChooseCorReading keeps the default reading when the best explains less than this, or when
-  // the next best is within `ambiguous_margin` of it (fractions, not %).
+  // ChooseCorReading decides nothing when the best explains less than this of the table, and
+  // by the physics alone when every other reading is more than `ambiguous_margin` below the
+  // best (fractions, not %).
   double min_explained = 0.5;
+  // Of the part beyond an affine map. Real EzCad tables: 63 % and 79 % in the reading chosen
+  // (EzCad builds its tables quadrant by quadrant, which no head does); a table of noise ~0.
+  double min_explained_nonlinear = 0.3;
   double ambiguous_margin = 0.05;
 
   Status Validate() const;
@@ -104,7 +125,11 @@ struct CorTableFit {
   double table_rms_mm = 0.0;     // rms |o|
   double residual_rms_mm = 0.0;  // rms |r|
   double residual_max_mm = 0.0;  // max |r|
-  std::string summary;           // Ceres's brief report of the best start
+  // The table less its least-squares affine part (what no gain, shear, turn or offset
+  // explains, and so what tells readings apart), and 1 - rms |r| / that.
+  double nonlinear_rms_mm = 0.0;
+  double explained_nonlinear = 0.0;
+  std::string summary;  // Ceres's brief report of the best start
 };
 
 // Fits the linear-drive head to a correction table: node_mm[k] (galvo frame) and the offset
@@ -116,25 +141,32 @@ Result<CorTableFit> ExplainCorrectionTable(const std::vector<Eigen::Vector2d>& n
                                            const std::vector<Eigen::Vector2d>& offset_mm,
                                            const CorPhysicsOptions& options);
 
-// One reading of a stored table: its name (for reports) and the table it makes.
+// One reading of a stored table: its name (for reports), whether it is the convention the
+// file format is documented in, and the table it makes.
 struct CorReadingCandidate {
   std::string name;
+  bool documented = false;
   std::vector<Eigen::Vector2d> node_mm;
   std::vector<Eigen::Vector2d> offset_mm;
 };
 
 struct CorReadingChoice {
-  std::vector<CorTableFit> fits;  // one per candidate, in the candidates' order
-  int best = -1;                  // highest explained
-  int runner_up = -1;             // the next (-1 with one candidate)
-  int chosen = -1;                // best, or the default when the data cannot tell
-  bool decided_by_physics = false;
-  std::string warning;  // why the default was kept, or that the best is weak
+  std::vector<CorTableFit> fits;       // one per candidate, in the candidates' order
+  int best = -1;                       // highest explained
+  int runner_up = -1;                  // the next (-1 with one candidate)
+  std::vector<int> tied;               // within ambiguous_margin of the best, best first
+  int chosen = -1;                     // -1: nothing decides
+  bool decided_by_physics = false;     // the physics alone
+  bool decided_by_convention = false;  // the documented convention among the tied
+  // What decided, in words ("the two-mirror head model: 94.0 % against 71.3 % for the next"),
+  // or why nothing did.
+  std::string evidence;
+  std::string warning;  // nothing decided, or the physics chose an undocumented reading
 };
 
 // Fits every candidate and chooses (see the header comment). Errors: invalid_argument (no
-// candidates, default_index out of range) and ExplainCorrectionTable's.
+// candidates) and ExplainCorrectionTable's.
 Result<CorReadingChoice> ChooseCorReading(const std::vector<CorReadingCandidate>& candidates,
-                                          int default_index, const CorPhysicsOptions& options);
+                                          const CorPhysicsOptions& options);
 
 }  // namespace insitu::fit

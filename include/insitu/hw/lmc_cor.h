@@ -12,11 +12,18 @@
 // what was not verified on a board).
 //
 // What the sources do not agree on is how a stored pair maps onto the field: meerk40t reads
-// the nodes x outer and the pair as (dx, dy); glase documents the pair as (dy, dx). A
-// CorReading names one such convention (node order, pair order, the sign of each component);
-// CorFile keeps the numbers exactly as stored and a reading is applied only where a table
-// meets insitu's galvo frame (OffsetMm, ToCorrectionCsv, FromCorrection). `insitu cor import`
-// lets the two-mirror head model choose the reading (fit/cor_physics.h).
+// the nodes x outer and the pair as (dx, dy); glase documents the pair as (dy, dx) with x
+// outer, the stored value the error the board SUBTRACTS, and its x is the board's second word
+// (glase sends positions as (y, x)). In the board's words that is: the inner index walks word
+// 1, the outer word 2, a pair is (error along word 1, error along word 2). Real EzCad tables
+// agree with that structure exactly (the first element is zero wherever the inner index is at
+// the centre, the second wherever the outer is), and the two-mirror head explains them in it
+// (docs/hardware.md, ".cor files"). A CorReading names one convention (node order, pair order,
+// the sign of each component) in insitu's galvo frame; CorFile keeps the numbers exactly as
+// stored and a reading is applied only where a table meets the galvo frame (OffsetMm,
+// ToCorrectionCsv, FromCorrection). `insitu cor import` lets the two-mirror head model choose
+// the reading, and the documented convention decide what the physics cannot
+// (fit/cor_physics.h, job/cor_reading.h).
 #pragma once
 
 #include <Eigen/Core>
@@ -34,8 +41,9 @@ namespace insitu::hw::lmc {
 enum class CorFormat { kJcz2, kLmc1 };
 
 // How the stored numbers of a table are insitu's offsets (galvo frame: dx along x, dy along
-// y, the offset to ADD to a command at the node). The default is insitu's historical reading
-// and meerk40t's: nodes x outer, pair (dx, dy), signs as stored.
+// y, the offset to ADD to a command at the node). A default-constructed reading is meerk40t's:
+// nodes x outer, pair (dx, dy), signs as stored (which real tables contradict: it is only a
+// name here, never a fallback).
 struct CorReading {
   bool y_major = false;     // stored with y outer: entry j * 65 + i is node (i, j), i along x
   bool pair_dy_dx = false;  // a stored pair is (dy, dx)
@@ -57,8 +65,19 @@ struct CorReading {
 // as the default: pair "dx-dy" or "dy-dx", node order "x-major" or "y-major", signs "++",
 // "+-", "-+" or "--" (of dx, dy). Errors: invalid_argument naming the part not understood.
 Result<CorReading> ParseCorReading(const std::string& code);
-// The 16 readings, the default first.
+// The 16 readings, meerk40t's first.
 std::vector<CorReading> AllCorReadings();
+
+// The documented convention (above) read into insitu's galvo frame, for a board whose word 1
+// drives galvo x, the first mirror (first_mirror_on_word2 false: lmc.swap_xy false): nodes y
+// outer, pair (dx, dy), both negated; or whose word 2 does (lmc.swap_xy true): nodes x outer,
+// pair (dy, dx), both negated. The two differ by a transposition only, which the two-mirror
+// head tells apart.
+CorReading DocumentedReading(bool first_mirror_on_word2);
+// One of the two.
+bool IsDocumentedReading(const CorReading& reading);
+// For a documented reading: whether the head's first mirror is on the board's word 2.
+bool FirstMirrorOnWord2(const CorReading& reading);
 
 struct CorFile {
   CorFormat format = CorFormat::kJcz2;
@@ -103,8 +122,9 @@ Result<std::optional<CorReading>> CorReadingOfCsv(const std::string& text,
                                                   const std::string& origin);
 // From a correction in the galvo frame: offset_mm(x, y) at every node of a lens_mm field,
 // stored as `reading` in whole units (what a WriteCorLine carries; so an exported table read
-// back and exported again is the same file in both formats).
+// back and exported again is the same file in both formats). A table for a board is stored in
+// DocumentedReading(its swap_xy).
 CorFile FromCorrection(const std::function<Eigen::Vector2d(double, double)>& offset_mm,
-                       double lens_mm, CorFormat format, const CorReading& reading = {});
+                       double lens_mm, CorFormat format, const CorReading& reading);
 
 }  // namespace insitu::hw::lmc

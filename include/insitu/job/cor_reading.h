@@ -3,10 +3,9 @@
 // field correction table as galvo field data for the diagnosis.
 #pragma once
 
+#include <Eigen/Core>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "insitu/core/status.h"
 #include "insitu/fit/cor_physics.h"
@@ -23,15 +22,24 @@ struct CorByPhysics {
   bool forced = false;                        // by `reading_code`
   // "read as <reading>: the two-mirror head model explains X % (next best <reading> Y %)".
   std::string summary;
+  // "decided by <the choice's evidence>" (empty when forced).
+  std::string evidence;
+  // For a reading in the documented convention: which board word drives the first mirror and
+  // the lmc.swap_xy that gives insitu's galvo frame on that board (empty otherwise).
+  std::string wiring;
 
   // The table in the reading used: node positions and offsets (galvo frame, mm).
   std::vector<Eigen::Vector2d> Nodes() const;
   std::vector<Eigen::Vector2d> Offsets() const;
 };
 
-// Reads `path` and fits the head to every reading. `reading_code` (hw::lmc::ParseCorReading)
-// forces one. Errors: ReadCor's; invalid_argument for a bad reading code; ChooseCorReading's.
-Result<CorByPhysics> ReadCorByPhysics(const std::string& path, const std::string& reading_code = "");
+// Reads `path` and fits the head to every reading; the reading used is the one the physics
+// and the documented convention decide (fit::ChooseCorReading). `reading_code`
+// (hw::lmc::ParseCorReading) forces one. Errors: ReadCor's; invalid_argument for a bad reading
+// code, and when nothing decides the reading (the message names the candidates' codes for
+// --reading); ChooseCorReading's.
+Result<CorByPhysics> ReadCorByPhysics(const std::string& path,
+                                      const std::string& reading_code = "");
 
 // A correction table as galvo field data: at node p the board adds o(p) to the command, and the
 // spot lands on p. So the command is p + o(p) and the measured position p: the head without

@@ -16,12 +16,15 @@ namespace insitu::job {
 // `insitu cor import` and field_calibration write), or measured field data (CONTRACT.md; what
 // field_calibration's field.csv holds). A table becomes the head without it: commanded p +
 // offset, landing on p. `source` says which, and for a .cor which reading. Errors: the
-// loader's (file, line, column named).
-Result<fit::FieldData> LoadDiagnoseData(const std::string& path, std::string* source);
+// loader's (file, line, column named). `cor_reading` forces the reading of a .cor file
+// (hw::lmc::ParseCorReading's code; empty: the evidence decides, job/cor_reading.h).
+Result<fit::FieldData> LoadDiagnoseData(const std::string& path, std::string* source,
+                                        const std::string& cor_reading = "");
 
 // Errors: those of loading the data (file, line, column named) and of the diagnosis; an output
 // folder that cannot be made or written (not_found / device_error naming it).
 Result<fit::Diagnosis> RunDiagnose(const std::string& csv_path, const std::string& out_dir,
-                                   const fit::DiagnoseOptions& options = {});
+                                   const fit::DiagnoseOptions& options = {},
+                                   const std::string& cor_reading = "");
 
 }  // namespace insitu::job

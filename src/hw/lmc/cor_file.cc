@@ -127,6 +127,21 @@ std::vector<CorReading> AllCorReadings() {
   return all;  // the default, all false, first
 }
 
+CorReading DocumentedReading(bool first_mirror_on_word2) {
+  CorReading r;
+  r.y_major = !first_mirror_on_word2;    // the outer index walks word 2
+  r.pair_dy_dx = first_mirror_on_word2;  // the first element is along word 1
+  r.negate_dx = true;                    // the board subtracts what is stored
+  r.negate_dy = true;
+  return r;
+}
+
+bool IsDocumentedReading(const CorReading& reading) {
+  return reading == DocumentedReading(false) || reading == DocumentedReading(true);
+}
+
+bool FirstMirrorOnWord2(const CorReading& reading) { return reading == DocumentedReading(true); }
+
 Eigen::Vector2d CorFile::NodeMm(int i, int j) const {
   return {(i * 1024.0 - 32768.0) / scale, (j * 1024.0 - 32768.0) / scale};
 }
