@@ -405,6 +405,74 @@ Result<Diagnosis> Diagnose(const FieldData& input, const DiagnoseOptions& o) {
         taken_cv = *trial_cv;
         break;
       }
+      if (taken != nullptr && static_cast<int>(current.size() - nuisance) + 2 <= o.max_effects) {
+        // Occam: two simpler effects that hold no more parameters between them than the one
+        // taken and fit better are the better account (a pincushion whose centre runs to the
+        // field's edge imitates an offset and a skew: kappa (x - x0)(y - y0)^2 is a constant
+        // and a shear there). They enter together if the held-out points confirm them.
+        // (Tried only while a pair still fits under max_effects.)
+        const size_t p_taken = taken->effect->param_names().size();
+        struct Simpler {
+          const Effect* a;
+          const Effect* b;
+          double bic;
+          FitResult fit;
+        };
+        std::optional<Simpler> simpler;
+        const size_t top = std::min<size_t>(candidates.size(), 6);
+        for (size_t i = 0; i < top; ++i) {
+          for (size_t j = i + 1; j < top; ++j) {
+            const Effect* a = candidates[i].effect;
+            const Effect* b = candidates[j].effect;
+            if (a == taken->effect || b == taken->effect || Excludes(a->name(), b->name())) {
+              continue;
+            }
+            if (a->param_names().size() + b->param_names().size() > p_taken) continue;
+            std::vector<const Effect*> trial = current;
+            trial.push_back(a);
+            trial.push_back(b);
+            auto r = FitEffects(data, trial, {}, warm);
+            if (!r.ok()) continue;
+            const double pair_bic = Bic(r->rss_mm2, m, r->parameters);
+            if (pair_bic < taken->bic && (!simpler || pair_bic < simpler->bic)) {
+              simpler = Simpler{a, b, pair_bic, *r};
+            }
+          }
+        }
+        // ... and better than the one taken with either of them beside it: else the one taken
+        // is real and the pair only holds the effect that comes next (a pincushion with its
+        // lens term, and a rotation).
+        if (simpler) {
+          for (const Effect* e : {simpler->a, simpler->b}) {
+            if (Excludes(e->name(), taken->effect->name())) continue;
+            std::vector<const Effect*> trial = current;
+            trial.push_back(taken->effect);
+            trial.push_back(e);
+            auto r = FitEffects(data, trial, {}, warm);
+            if (r.ok() && Bic(r->rss_mm2, m, r->parameters) <= simpler->bic) simpler.reset();
+            if (!simpler) break;
+          }
+        }
+        if (simpler) {
+          std::vector<const Effect*> trial = current;
+          trial.push_back(simpler->a);
+          trial.push_back(simpler->b);
+          auto trial_cv = CrossValidatedRms(data, trial, fold_of, folds);
+          if (trial_cv.ok() && *trial_cv <= taken_cv) {
+            d.notes.push_back(simpler->a->name() + " and " + simpler->b->name() +
+                              " together explain more than " + taken->effect->name() +
+                              " with no more parameters: taken in its place");
+            for (const Effect* e : {simpler->a, simpler->b}) {
+              d.effects.push_back(Entered(*e, simpler->bic - bic, *trial_cv));
+              current.push_back(e);
+            }
+            bic = simpler->bic;
+            cv = *trial_cv;
+            best_fit = simpler->fit;
+            continue;
+          }
+        }
+      }
       if (taken != nullptr) {
         d.effects.push_back(Entered(*taken->effect, taken->bic - bic, taken_cv));
         current.push_back(taken->effect);

@@ -27,6 +27,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <sstream>
@@ -455,6 +456,29 @@ Status WriteFieldCsv(const std::vector<Target>& targets, const Eigen::Isometry2d
        << (t.check ? 1 : 0) << "\n";
   }
   return WriteFileAtomically(path, os.str());
+}
+
+// The whole correction table for a board that drives this head linearly: at p, the linear
+// drive of the command the measured correction asks for there (`delta(p)`: what to add to a
+// command of the controller as it is now). The controller's drive comes from the scanner when
+// it holds the table itself (an LMC board: its uploaded table), else from the head's design
+// (a head that corrects itself: its controller inverts the design geometry, and the linear
+// drive of those mirror angles is f_design times them). So the table replaces the board's own
+// rather than adding to it. Galvo frame, mm.
+std::function<Vector2d(double, double)> WholeTable(const hw::Scanner& scanner,
+                                                   const optics::HeadGeometry& design,
+                                                   std::function<Vector2d(double, double)> delta) {
+  return [&scanner, design, delta = std::move(delta)](double x, double y) {
+    const Vector2d p(x, y);
+    const Vector2d c = p + delta(x, y);
+    Vector2d drive;
+    if (!scanner.DriveCommand(c, &drive)) {
+      optics::MirrorAngles a;
+      if (!optics::ScanOptics(design).Solve(c.x(), c.y(), 0.0, &a)) return Vector2d(c - p);
+      drive = design.focal_length_mm * Vector2d(a.x_rad, a.y_rad);
+    }
+    return Vector2d(drive - p);
+  };
 }
 
 }  // namespace
@@ -942,12 +966,15 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
     }
     counting = false;
     if (head_info.field_half_size_mm > 0) {
-      // EzCad's table over the lens field, in insitu's default reading (docs/hardware.md). It
-      // holds the correction on top of what the head does now (its controller's own table): on
-      // an LMC board it is to be composed with the board's current table, not loaded alone.
-      const auto cor =
-          hw::lmc::FromCorrection(offset_at, 2.0 * head_info.field_half_size_mm,
-                                  hw::lmc::CorFormat::kJcz2, hw::lmc::DocumentedReading(false));
+      // The whole table a board driving this head needs (docs/calibration.md, "field.cor"):
+      // the measured correction composed with what the controller does now, in the documented
+      // convention for the board's axes.
+      const auto whole = WholeTable(*machine.scanner, previous->head.model.design, offset_at);
+      const double lens_mm = head_info.table_field_mm > 0 ? head_info.table_field_mm
+                                                          : 2.0 * head_info.field_half_size_mm;
+      const auto cor = hw::lmc::FromCorrection(
+          whole, lens_mm, hw::lmc::CorFormat::kJcz2,
+          hw::lmc::DocumentedReading(machine.scanner->FirstMirrorOnWord2()));
       if (hw::lmc::WriteCor((dir / "field.cor").string(), cor).ok()) {
         report.artifacts["field_cor"] = "field.cor";
       }

@@ -54,6 +54,7 @@ void ReadWorld(ConfigReader& r, WorldOptions* w) {
   sh.Read("clock_us", &w->scan_head.clock_us);
   sh.Read("repeatability_urad", &w->scan_head.repeatability_urad);
   sh.Read("command_bits", &w->scan_head.command_bits);
+  sh.Read("own_correction", &w->scan_head.own_correction);
   ReadBeam(sh.Section("pointer"), &w->scan_head.pointer);
   ReadBeam(sh.Section("marking"), &w->scan_head.marking);
   {

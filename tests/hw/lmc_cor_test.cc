@@ -43,10 +43,8 @@ void Put(const std::string& path, const std::string& bytes) {
 // The simulated head as an LMC board without a table drives it: the simulator's optics
 // (sim::WorldOptions, f = 255 mm) as built with lens distortion, both mirror axes tilted and
 // zero offsets, and the board's linear map from units to optical angles, a = x / f + a0.
-// The simulator's own controller inverts the head's design geometry instead (a factory-
-// corrected head), and the board emulator (lmc::SimBoard) keeps an uploaded table without
-// applying it, so the head's correction is computed here from the same optics: the command
-// whose spot lands on the node, minus the node.
+// The head's correction is computed here from the same optics: the command whose spot lands on
+// the node, minus the node.
 struct SimLmcHead {
   optics::HeadGeometry built;
   double x0_mrad = 0.4, y0_mrad = -0.3;
@@ -140,31 +138,103 @@ TEST(LmcCor, TheHeadModelReadsASimulatedHeadsTableInItsConvention) {
   }
 }
 
-// The board gets the file as stored, whatever reading insitu understood it by: it applies the
-// table in its own convention. (The emulator keeps the table and does not apply it to where
-// the simulated head lands, so that marks land better with the right reading than with the
-// transposed one is not something this emulator can show.)
-TEST(LmcCor, TheBoardGetsTheFileAsStored) {
+// A generated head's table round-trips through export, import and the emulated board to the
+// same marks. The head is driven linearly (an analogue head behind an LMC board: the world's
+// own_correction off), so the board's uploaded table is all the correction there is; the
+// board applies it as the documented convention says, which is also how insitu exports it for
+// the board's wiring (swap_xy). The file is uploaded as stored. For both wirings: the physics
+// reads the file back in the reading it was written in, the CSV exports to the same bytes, and
+// the marks land where asked; the table of the other wiring (the transposed reading) misses
+// by the two-mirror distortion's asymmetry.
+TEST(LmcCor, AHeadsTableRoundTripsThroughTheBoardToTheSameMarks) {
   const SimLmcHead head;
+  const auto correction = [&](double x, double y) { return head.Correction(x, y); };
+  for (const bool swap : {false, true}) {
+    SCOPED_TRACE(swap ? "swap_xy" : "no swap");
+    const CorReading reading = DocumentedReading(swap);
+    const std::string path = Temp("insitu_round_trip.cor"), again = Temp("insitu_round_trip2.cor");
+    ASSERT_TRUE(WriteCor(path, FromCorrection(correction, kLens, CorFormat::kJcz2, reading)).ok());
+    const auto cor = ReadCor(path);
+    ASSERT_TRUE(cor.ok());
+    fit::CorPhysicsOptions options;
+    options.lens_mm = cor->lens_mm();
+    const auto choice = fit::ChooseCorReading(Candidates(*cor), options);
+    ASSERT_TRUE(choice.ok()) << choice.status().ToString();
+    ASSERT_GE(choice->chosen, 0) << choice->warning;
+    EXPECT_EQ(AllCorReadings()[choice->chosen], reading);
+    EXPECT_GE(choice->fits[choice->chosen].explained, 0.99);
+    const std::string csv = ToCorrectionCsv(*cor, reading);
+    const auto table = pattern::CorrectionTable::Parse(csv, "imported.csv");
+    ASSERT_TRUE(table.ok());
+    ASSERT_TRUE(
+        WriteCor(again, FromCorrection([&](double x, double y) { return table->OffsetAt(x, y); },
+                                       kLens, CorFormat::kJcz2, reading))
+            .ok());
+    ASSERT_TRUE(Bytes(path) == Bytes(again)) << "the second export differs";
+
+    // The head behind the board.
+    sim::WorldOptions w;
+    w.part.kind = "none";
+    w.scan_head.optics = head.built;
+    w.scan_head.design.focal_length_mm = head.built.focal_length_mm;
+    w.scan_head.x_zero_offset_mrad = head.x0_mrad;
+    w.scan_head.y_zero_offset_mrad = head.y0_mrad;
+    w.scan_head.own_correction = false;
+    // Where the head puts the beam for command p (galvo frame, mm), through a board set up as
+    // `o` that was given `file`.
+    const auto landed = [&](const BoardOptions& o, const CorFile& file,
+                            std::vector<Vector2d>* asked) {
+      auto world = std::make_shared<sim::SimWorld>(w);
+      SimBoard board(world, o);
+      EXPECT_TRUE(UploadCorrection(board, ToBoard(file)).ok());
+      const optics::ScanOptics built(head.built);
+      std::vector<Vector2d> out;
+      asked->clear();
+      for (int i = -3; i <= 3; ++i) {
+        for (int j = -3; j <= 3; ++j) {
+          const Eigen::Vector3d p(20.0 * i, 20.0 * j, 0.0);
+          optics::MirrorAngles a;
+          EXPECT_TRUE(world->CommandToAngles(p, &a));
+          asked->push_back(p.head<2>());
+          out.push_back(built.Trace(a).focal_point_in_world.head<2>());
+        }
+      }
+      return out;
+    };
+    BoardOptions o;
+    o.lens_mm = kLens;
+    o.swap_xy = swap;
+    std::vector<Vector2d> asked;
+    const std::vector<Vector2d> spots = landed(o, *ReadCor(again), &asked);
+    double worst = 0;
+    for (size_t k = 0; k < spots.size(); ++k) worst = std::max(worst, (spots[k] - asked[k]).norm());
+    // Whole units (2.5 um: <= 1.8 um as a vector) and the bilinear steps of 2.5 mm over a
+    // correction whose curvature reaches ~4e-3 /mm at +-60 mm (h^2 / 8 * 4e-3 ~ 3 um).
+    std::printf("  the head's table through the board: worst %.2f um from where asked\n",
+                worst * 1e3);
+    EXPECT_LE(worst, 0.005);
+    // The same numbers on a board of the other wiring: the table is read transposed.
+    BoardOptions other = o;
+    other.swap_xy = !swap;
+    const std::vector<Vector2d> wrong = landed(other, *ReadCor(again), &asked);
+    double wrong_worst = 0;
+    for (size_t k = 0; k < wrong.size(); ++k) {
+      wrong_worst = std::max(wrong_worst, (wrong[k] - asked[k]).norm());
+    }
+    std::printf("  on a board of the other wiring: worst %.0f um\n", wrong_worst * 1e3);
+    EXPECT_GT(wrong_worst, 0.1);
+  }
+  // And a machine whose board gets a file comes up, the file uploaded as stored.
   const std::string path = Temp("insitu_sim_head_upload.cor");
   ASSERT_TRUE(
-      WriteCor(path, FromCorrection([&](double x, double y) { return head.Correction(x, y); },
-                                    kLens, CorFormat::kJcz2, *ParseCorReading("dy-dx")))
+      WriteCor(path, FromCorrection(correction, kLens, CorFormat::kJcz2, DocumentedReading(false)))
           .ok());
-  const auto cor = ReadCor(path);
-  ASSERT_TRUE(cor.ok());
   auto world = std::make_shared<sim::SimWorld>(sim::WorldOptions{});
   BoardOptions board_options;
   board_options.lens_mm = kLens;
   SimBoard board(world, board_options);
-  ASSERT_TRUE(UploadCorrection(board, ToBoard(*cor)).ok());
-  const auto uploaded = board.log().correction;
-  ASSERT_EQ(uploaded.size(), 4225u);
-  for (size_t n = 0; n < uploaded.size(); ++n) {
-    ASSERT_EQ(uploaded[n][0], cor->offsets[n][0]) << n;
-    ASSERT_EQ(uploaded[n][1], cor->offsets[n][1]) << n;
-  }
-  // And a machine whose board gets it comes up.
+  ASSERT_TRUE(UploadCorrection(board, ToBoard(*ReadCor(path))).ok());
+  ASSERT_EQ(board.log().correction, ToBoard(*ReadCor(path)).offsets);
   MachineConfig config;
   config.scanner = "lmc";
   config.lmc.transport = "sim_board";

@@ -17,8 +17,11 @@
 #include <string>
 
 #include "insitu/calib/calibration.h"
+#include "insitu/hw/cell.h"
+#include "insitu/hw/lmc_cor.h"
 #include "insitu/hw/machine.h"
 #include "insitu/hw/sim_backend.h"
+#include "insitu/job/cor_reading.h"
 #include "insitu/optics/scan_head.h"
 #include "insitu/sim/world.h"
 #include "integration/job_support.h"
@@ -55,9 +58,9 @@ TEST(FieldCalibrationJob, AsBuiltHeadIsMeasuredCorrectedAndUsed) {
     ASSERT_TRUE(calibrated.ok()) << calibrated.status().ToString();
   }
   const std::vector<std::string> gauge = {"scan.line_spacing_mm=1.0"};
-  auto before = testing::RunShippedJob(
-      "accuracy_step_gauge.yaml", With(With(kAsBuilt, gauge), {"machine.calibration=" + cal}),
-      (dir / "accuracy_before").string());
+  auto before = testing::RunShippedJob("accuracy_step_gauge.yaml",
+                                       With(With(kAsBuilt, gauge), {"machine.calibration=" + cal}),
+                                       (dir / "accuracy_before").string());
   ASSERT_TRUE(before.ok()) << before.status().ToString();
   // The head's 0.47 % scale, absorbed silently by the camera's pose: the gauge comes out short
   // by several times the 0.05 mm bar.
@@ -69,11 +72,11 @@ TEST(FieldCalibrationJob, AsBuiltHeadIsMeasuredCorrectedAndUsed) {
       (dir / "field").string());
   ASSERT_TRUE(field.ok()) << field.status().ToString();
   auto& m = field->metrics;
-  std::printf("field: %.1f um rms before, %.2f um after (%.2f %% removed); physics %.2f, "
-              "bilinear 11 %.2f, quadrant %.1f um\n",
-              m["field_error_rms_um_before"], m["field_error_rms_um_after"],
-              m["distortion_removed_pct"], m["model_physics_rms_um"], m["model_bilinear_11_rms_um"],
-              m["model_quadrant_rms_um"]);
+  std::printf(
+      "field: %.1f um rms before, %.2f um after (%.2f %% removed); physics %.2f, "
+      "bilinear 11 %.2f, quadrant %.1f um\n",
+      m["field_error_rms_um_before"], m["field_error_rms_um_after"], m["distortion_removed_pct"],
+      m["model_physics_rms_um"], m["model_bilinear_11_rms_um"], m["model_quadrant_rms_um"]);
   EXPECT_EQ(m["targets_found"], m["targets_expected"]);
   EXPECT_EQ(m["check_points"], 100.0);
   EXPECT_GT(m["field_error_rms_um_before"], 100.0);  // 0.47 % over a +-60 mm field
@@ -136,6 +139,63 @@ TEST(FieldCalibrationJob, AsBuiltHeadIsMeasuredCorrectedAndUsed) {
   const double truth_rms_um = truth_rms(*set);
   std::printf("truth: corrected marks within %.2f um rms of where asked\n", truth_rms_um);
   EXPECT_LE(truth_rms_um, 10.0);
+  // field.cor is the whole table a board driving this head needs (the measured correction on
+  // the head's design correction): read back, the physics reads it in the documented
+  // convention of a board whose first word drives the first mirror, and explains >= 95 % of
+  // it (the bar)...
+  {
+    const std::string cor = (dir / "field" / "field.cor").string();
+    auto read = job::ReadCorByPhysics(cor);
+    ASSERT_TRUE(read.ok()) << read.status().ToString();
+    std::printf("field.cor: %s; %s\n", read->summary.c_str(), read->evidence.c_str());
+    EXPECT_FALSE(read->forced);
+    EXPECT_EQ(read->readings[read->used], hw::lmc::DocumentedReading(false));
+    EXPECT_GE(read->choice.fits[read->used].explained, 0.95);
+    // ... and an LMC board given it (the emulator applies the uploaded table as the documented
+    // convention says) puts the marking beam of the same as-built head, now driven linearly
+    // as an analogue head behind a board is, where the commands ask: within the same 10 um
+    // after the best rigid fit as the machine's own correction above. What the table adds to
+    // that: its whole units (2.1 um at 140 mm, 0.6 um rms) and bilinear steps of 2.2 mm over a
+    // correction whose curvature is ~4e-3 /mm at the edge (~2 um).
+    sim::WorldOptions w = testing::LastSimWorld()->options();
+    w.scan_head.own_correction = false;
+    w.part.kind = "none";
+    auto board_world = std::make_shared<sim::SimWorld>(w);
+    hw::MachineConfig config;
+    config.scanner = "lmc";
+    config.lmc.transport = "sim_board";
+    config.lmc.correction_file = cor;
+    config.lmc.board.lens_mm = 2.0 * sh.field_half_size_mm;
+    auto machine = hw::CreateMachineOn(config, board_world);
+    ASSERT_TRUE(machine.ok()) << machine.status().ToString();
+    std::vector<Eigen::Vector2d> asked, landed, uncorrected;
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(-60.0, 60.0);
+    for (int i = 0; i < 200; ++i) {
+      const Eigen::Vector3d p(u(rng), u(rng), 0.0);
+      optics::MirrorAngles a;
+      ASSERT_TRUE(board_world->CommandToAngles(p, &a));
+      const optics::ChiefRay ray = optics::ScanOptics(sh.optics).Trace(a, sh.marking.Path());
+      asked.push_back(p.head<2>());
+      landed.push_back(ray.focal_point_in_world.head<2>());
+    }
+    Eigen::MatrixXd a(2, asked.size()), l(2, landed.size());
+    for (size_t i = 0; i < asked.size(); ++i) {
+      a.col(i) = asked[i];
+      l.col(i) = landed[i];
+    }
+    const Eigen::MatrixXd rigid = Eigen::umeyama(a, l, false);
+    double ss = 0;
+    for (size_t i = 0; i < asked.size(); ++i) {
+      ss += (rigid.topLeftCorner(2, 2) * asked[i] + rigid.topRightCorner(2, 1) - landed[i])
+                .squaredNorm();
+    }
+    const double board_um = std::sqrt(ss / asked.size()) * 1e3;
+    std::printf("field.cor through an LMC board on the linear head: marks within %.2f um rms\n",
+                board_um);
+    EXPECT_LE(board_um, 10.0);
+  }
+
   // The pointer's path, measured against the marking beam: lateral colour to 0.02 % (the
   // fit's standard error from 121 spots at ~19 um is ~0.003 %; the camera's own scale error
   // adds ~0.005 %).
@@ -149,22 +209,23 @@ TEST(FieldCalibrationJob, AsBuiltHeadIsMeasuredCorrectedAndUsed) {
   // correction is good to that: <= 40 um rms after (about twice the scatter: the spot measured
   // after, and the noise the fit passes into the correction), a fifth of the ~175 um the
   // pointer's field shows before (its -0.3 % lateral colour takes back part of the 0.47 %).
-  auto spots = testing::RunShippedJob(
-      "field_calibration.yaml",
-      With(kAsBuilt, {"machine.calibration=" + cal, "output.calibration=" + (dir / "p.yaml").string(),
-                      "target.kind=pointer", "grid.n=7"}),
-      (dir / "pointer").string());
+  auto spots =
+      testing::RunShippedJob("field_calibration.yaml",
+                             With(kAsBuilt, {"machine.calibration=" + cal,
+                                             "output.calibration=" + (dir / "p.yaml").string(),
+                                             "target.kind=pointer", "grid.n=7"}),
+                             (dir / "pointer").string());
   ASSERT_TRUE(spots.ok()) << spots.status().ToString();
   // Run again on a machine whose pointer path was measured by the marked targets: the spots
   // are taken to the marking beam through it, so marks no longer carry the pointer's -0.3 %
   // lateral colour (~180 um at 60 mm). What is left is the spots' own scatter passed into the
   // correction: <= 40 um, as above.
-  auto respots = testing::RunShippedJob(
-      "field_calibration.yaml",
-      With(kAsBuilt, {"machine.calibration=" + measured,
-                      "output.calibration=" + (dir / "p2.yaml").string(), "target.kind=pointer",
-                      "grid.n=7"}),
-      (dir / "pointer2").string());
+  auto respots =
+      testing::RunShippedJob("field_calibration.yaml",
+                             With(kAsBuilt, {"machine.calibration=" + measured,
+                                             "output.calibration=" + (dir / "p2.yaml").string(),
+                                             "target.kind=pointer", "grid.n=7"}),
+                             (dir / "pointer2").string());
   ASSERT_TRUE(respots.ok()) << respots.status().ToString();
   {
     auto p2 = calib::LoadCalibration((dir / "p2.yaml").string());
@@ -174,7 +235,8 @@ TEST(FieldCalibrationJob, AsBuiltHeadIsMeasuredCorrectedAndUsed) {
     EXPECT_LE(marks_um, 40.0);
   }
   std::printf("pointer variant: %.1f um rms before, %.1f um after\n",
-              spots->metrics["field_error_rms_um_before"], spots->metrics["field_error_rms_um_after"]);
+              spots->metrics["field_error_rms_um_before"],
+              spots->metrics["field_error_rms_um_after"]);
   EXPECT_LE(spots->metrics["field_error_rms_um_after"], 40.0);
   EXPECT_LT(spots->metrics["field_error_rms_um_after"],
             0.2 * spots->metrics["field_error_rms_um_before"]);
@@ -182,11 +244,12 @@ TEST(FieldCalibrationJob, AsBuiltHeadIsMeasuredCorrectedAndUsed) {
   // Seed 001's crosses instead of discs, found in the frame resampled onto the plate: their
   // centres rest on the bars' centre lines (~50 cross-sections each, 5 px wide), a little
   // noisier than a disc's ~150 edge points, so the same bars hold (~3 um after).
-  auto crosses = testing::RunShippedJob(
-      "field_calibration.yaml",
-      With(kAsBuilt, {"machine.calibration=" + cal, "output.calibration=" + (dir / "x.yaml").string(),
-                      "target.kind=cross", "grid.n=7"}),
-      (dir / "cross").string());
+  auto crosses =
+      testing::RunShippedJob("field_calibration.yaml",
+                             With(kAsBuilt, {"machine.calibration=" + cal,
+                                             "output.calibration=" + (dir / "x.yaml").string(),
+                                             "target.kind=cross", "grid.n=7"}),
+                             (dir / "cross").string());
   ASSERT_TRUE(crosses.ok()) << crosses.status().ToString();
   std::printf("cross targets: %.1f um rms before, %.2f um after (%.2f %% removed)\n",
               crosses->metrics["field_error_rms_um_before"],
@@ -198,8 +261,7 @@ TEST(FieldCalibrationJob, AsBuiltHeadIsMeasuredCorrectedAndUsed) {
 
   // The rest of the machine uses what was measured: the gauge's length and heights hold.
   auto after = testing::RunShippedJob(
-      "accuracy_step_gauge.yaml",
-      With(With(kAsBuilt, gauge), {"machine.calibration=" + measured}),
+      "accuracy_step_gauge.yaml", With(With(kAsBuilt, gauge), {"machine.calibration=" + measured}),
       (dir / "accuracy_after").string());
   ASSERT_TRUE(after.ok()) << after.status().ToString();
   std::printf("step gauge: length error %.3f mm before, %.3f mm after; binned height %.3f mm\n",

@@ -4,13 +4,12 @@
 // the head is armed (ros2_control-style: connected is not armed).
 #pragma once
 
+#include <Eigen/Core>
 #include <atomic>
 #include <functional>
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "insitu/core/status.h"
 
@@ -27,8 +26,8 @@ struct GalvoList {
   std::vector<GalvoListEntry> entries;
   double jump_speed_mm_per_s = 5000.0;
   double mark_speed_mm_per_s = 1000.0;
-  double laser_power = 0.5;             // fraction of full power
-  double laser_frequency_khz = 30.0;    // pulse repetition rate
+  double laser_power = 0.5;           // fraction of full power
+  double laser_frequency_khz = 30.0;  // pulse repetition rate
   double laser_on_delay_us = 0.0, laser_off_delay_us = 0.0;
   double jump_delay_us = 0.0, mark_delay_us = 0.0;
 
@@ -48,6 +47,9 @@ struct ScannerInfo {
   double clock_us = 10.0;
   // The head has an output wired to the side camera's trigger input (RunTriggeredSweep).
   bool trigger_output = false;
+  // The field a correction table for this controller spans (an LMC board's lens: 65536
+  // units), mm; 0: twice field_half_size_mm.
+  double table_field_mm = 0.0;
 };
 
 // A scan as one run of the head, pacing the camera: for each line the pointer goes to the
@@ -107,6 +109,22 @@ class Scanner {
     }
     return RunSweep(sweep, control);
   }
+
+  // What the controller drives the galvos with for a command, as the command of the same head
+  // driven linearly (galvo frame, mm: the optical angles times the design focal length), when
+  // the controller's correction is a table this backend holds (an LMC board: the table it
+  // uploaded, none the identity). False when the head corrects itself (its own design
+  // correction: the simulated head, a digital head): the caller then takes the head's design
+  // from its calibration. So a correction measured through the head can be composed with what
+  // the controller does now (field_calibration's field.cor).
+  virtual bool DriveCommand(const Eigen::Vector2d& command_mm, Eigen::Vector2d* drive_mm) const {
+    (void)command_mm;
+    (void)drive_mm;
+    return false;
+  }
+  // For DriveCommand's table: whether the board's second position word drives galvo x, the
+  // first mirror (the board's swap_xy), which decides how a table for it is stored.
+  virtual bool FirstMirrorOnWord2() const { return false; }
 
   // Arming enables the marking laser for ExecuteList; disarm when the job ends or fails.
   virtual Status Arm() = 0;

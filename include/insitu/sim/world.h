@@ -6,21 +6,20 @@
 // for tests that measure the algorithms against reality.
 #pragma once
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <array>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
-#include <deque>
 #include <cstdint>
+#include <deque>
 #include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
 #include <random>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 #include "insitu/core/frame.h"
 #include "insitu/core/status.h"
@@ -127,6 +126,10 @@ class SimWorld {
   Status MoveHead(const Eigen::Vector3d& point_in_galvo);
   // Where the head would put the chief ray for a command (after its correction table).
   bool CommandToAngles(const Eigen::Vector3d& point_in_galvo, MirrorAngles* angles) const;
+  // A board between the host and the head (an LMC board) applies its correction table to
+  // every command on the head's clock before the head gets it (galvo frame, mm, z unchanged);
+  // empty: none. The emulated board sets it when a table has been uploaded.
+  void SetBoardCorrection(std::function<Eigen::Vector2d(const Eigen::Vector2d&)> correction);
 
   // Z stage.
   Status MoveStage(double z_mm);
@@ -257,6 +260,7 @@ class SimWorld {
   std::unique_ptr<Scene> scene_;
   std::unique_ptr<ScanOptics> true_optics_;
   std::unique_ptr<ScanOptics> design_optics_;
+  std::function<Eigen::Vector2d(const Eigen::Vector2d&)> board_correction_;
   std::unique_ptr<CameraModel> camera_full_;
   double now_s_ = 0.0;
   std::optional<PointerProgram> pointer_;
@@ -286,7 +290,7 @@ class SimWorld {
   bool paced_ = false;
   std::chrono::steady_clock::time_point pace_wall0_;
   double pace_virtual0_ = 0.0;
-  std::unique_ptr<MarkMap> marks_;  // what the pulses ablated, for the cameras
+  std::unique_ptr<MarkMap> marks_;                      // what the pulses ablated, for the cameras
   std::unique_ptr<fit::ModelExtension> field_effects_;  // carried by the head (may be empty)
   Eigen::Vector3d last_command_ = Eigen::Vector3d::Zero();
   // The mirrors' settling error since the last jump (repeatability), optical angles.

@@ -131,11 +131,25 @@ Result<std::vector<std::vector<uint8_t>>> CorrectionUpload(const BoardCorrection
 // Sends them, reading each reply. Errors: out_of_range (an offset), device_error (transport).
 Status UploadCorrection(Transport& transport, const BoardCorrection& table);
 
+// Where the board sends a position once its correction table has had it (the documented
+// convention, hw/lmc_cor.h: line k of the upload is the node at inner index k % 65 along word
+// 1 and outer index k / 65 along word 2, 1024 units apart from unit 0; a line is the error
+// along word 1 and along word 2, which the board subtracts, bilinear between the nodes and the
+// edge's beyond them). Position words as doubles (0..65536), not rounded. An empty table: the
+// words as they are.
+std::array<double, 2> ApplyBoardTable(const BoardCorrection& table, double word1, double word2);
+// The same in the galvo frame (mm) for a board set up as `options` (lens, swap and flips).
+Eigen::Vector2d ApplyBoardTableMm(const BoardCorrection& table, const BoardOptions& options,
+                                  const Eigen::Vector2d& command_mm);
+
 // A Scanner on an LMC board. Arm/Disarm enable and disable the laser output; a marking list
 // opens the fibre laser's master oscillator, is streamed (every packet after the board reports
 // READY) and polled until the board is done, and closes it again; control.abort (checked while
 // streaming and polling) sends StopExecute, closes the oscillator, disables the laser and
 // resets the list. The pointer sweeps with the pointer port on and the laser off.
-std::unique_ptr<Scanner> MakeScanner(std::unique_ptr<Transport> transport, BoardOptions options);
+// `uploaded` is the table the board was given when it opened (empty: none), so that the
+// scanner can say what the galvos receive for a command (Scanner::DriveCommand).
+std::unique_ptr<Scanner> MakeScanner(std::unique_ptr<Transport> transport, BoardOptions options,
+                                     BoardCorrection uploaded = {});
 
 }  // namespace insitu::hw::lmc

@@ -13,8 +13,8 @@ namespace {
 
 class BoardScanner : public Scanner {
  public:
-  BoardScanner(std::unique_ptr<Transport> transport, BoardOptions options)
-      : transport_(std::move(transport)), options_(options) {}
+  BoardScanner(std::unique_ptr<Transport> transport, BoardOptions options, BoardCorrection uploaded)
+      : transport_(std::move(transport)), options_(options), uploaded_(std::move(uploaded)) {}
 
   ~BoardScanner() override {
     // Leave the board safe: nothing running, the oscillator closed, the laser output off.
@@ -26,11 +26,18 @@ class BoardScanner : public Scanner {
     i.model = "BJJCZ LMC board (" + transport_->Describe() + ")";
     // The floor in ToUnits puts +lens/2 one unit past 0xFFFF: half the lens minus one unit.
     i.field_half_size_mm = 0.5 * options_.lens_mm * (1.0 - 2.0 / 65536.0);
+    i.table_field_mm = options_.lens_mm;
     i.focus_range_mm = options_.focus == Focus::kDaZWord ? options_.focus_range_mm : 0.0;
     i.clock_us = 10.0;
     i.trigger_output = options_.trigger_port != 0;
     return i;
   }
+
+  bool DriveCommand(const Eigen::Vector2d& command_mm, Eigen::Vector2d* drive_mm) const override {
+    *drive_mm = ApplyBoardTableMm(uploaded_, options_, command_mm);
+    return true;
+  }
+  bool FirstMirrorOnWord2() const override { return options_.swap_xy; }
 
   Status StartPointerLine(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
                           double speed_mm_per_s) override {
@@ -137,8 +144,7 @@ class BoardScanner : public Scanner {
 
   // Streams `commands` and polls until the board is no longer busy; the list's time estimate
   // stands in for progress. Every failure and control.abort leave the board stopped (Abort).
-  Status Run(const std::vector<Command>& commands, const ListControl& control,
-             double estimate_s) {
+  Status Run(const std::vector<Command>& commands, const ListControl& control, double estimate_s) {
     const auto start = std::chrono::steady_clock::now();
     const Status sent = SendList(commands, control);
     if (!sent.ok()) return Stopped(sent);
@@ -154,12 +160,13 @@ class BoardScanner : public Scanner {
       const double elapsed =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       if (elapsed > options_.list_timeout_s) {
-        return Stopped(Status(StatusCode::kDeviceError,
-                              "the board was still busy after " +
-                                  std::to_string(options_.list_timeout_s) + " s"));
+        return Stopped(Status(
+            StatusCode::kDeviceError,
+            "the board was still busy after " + std::to_string(options_.list_timeout_s) + " s"));
       }
       // The board tells no progress: the list's own time estimate stands in, short of 1.
-      if (control.progress && estimate_s > 0) control.progress(std::min(0.99, elapsed / estimate_s));
+      if (control.progress && estimate_s > 0)
+        control.progress(std::min(0.99, elapsed / estimate_s));
       std::this_thread::sleep_for(std::chrono::milliseconds(options_.poll_ms));
     }
   }
@@ -244,6 +251,7 @@ class BoardScanner : public Scanner {
 
   std::unique_ptr<Transport> transport_;
   BoardOptions options_;
+  BoardCorrection uploaded_;  // what the board was given when it opened (empty: none)
   bool armed_ = false;
   bool pointer_on_ = false;
   std::array<uint16_t, 2> position_{0x8000, 0x8000};
@@ -252,8 +260,9 @@ class BoardScanner : public Scanner {
 
 }  // namespace
 
-std::unique_ptr<Scanner> MakeScanner(std::unique_ptr<Transport> transport, BoardOptions options) {
-  return std::make_unique<BoardScanner>(std::move(transport), options);
+std::unique_ptr<Scanner> MakeScanner(std::unique_ptr<Transport> transport, BoardOptions options,
+                                     BoardCorrection uploaded) {
+  return std::make_unique<BoardScanner>(std::move(transport), options, std::move(uploaded));
 }
 
 }  // namespace insitu::hw::lmc

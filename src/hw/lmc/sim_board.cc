@@ -1,10 +1,10 @@
+#include "hw/lmc/sim_board.h"
+
 #include <algorithm>
 #include <atomic>
 #include <deque>
 #include <mutex>
 #include <thread>
-
-#include "hw/lmc/sim_board.h"
 
 namespace insitu::hw::lmc {
 
@@ -297,13 +297,24 @@ struct SimBoard::Impl {
         }
         break;
       case kWriteCorTable:
+        // A new table: until its last line the board corrects nothing.
         log.correction.clear();
+        world->SetBoardCorrection({});
         break;
       case kWriteCorLine: {
         const auto value = [](uint16_t w) {
           return w & 0x8000 ? -static_cast<int32_t>(w & 0x7FFF) : static_cast<int32_t>(w);
         };
         log.correction.push_back({value(c[1]), value(c[2])});
+        if (log.correction.size() == 65 * 65) {
+          // The whole table: from here on every position the board sends the head has been
+          // through it (ApplyBoardTable: the documented convention).
+          BoardCorrection table;
+          table.offsets = log.correction;
+          world->SetBoardCorrection([table, o = options](const Eigen::Vector2d& command_mm) {
+            return ApplyBoardTableMm(table, o, command_mm);
+          });
+        }
         return;  // the board does not answer a correction line
       }
       default:
@@ -323,6 +334,7 @@ SimBoard::SimBoard(std::shared_ptr<sim::SimWorld> world, BoardOptions options)
 SimBoard::~SimBoard() {
   impl_->abort = true;
   impl_->Join();
+  impl_->world->SetBoardCorrection({});  // the head is no longer behind this board
 }
 
 Status SimBoard::Write(const uint8_t* data, size_t size) {
