@@ -20,6 +20,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -218,23 +219,38 @@ int CorImport(const std::string& cor_path, const std::string& out,
   return 0;
 }
 
+// The board's axes for an export: given on the command line (they win over a CSV's reading
+// comment), else none.
+struct ExportAxes {
+  bool swap_xy = false, flip_x = false, flip_y = false;
+  bool Given() const { return swap_xy || flip_x || flip_y; }
+};
+
 int CorExport(const std::string& table_path, double lens_mm, const std::string& format,
-              const std::string& reading_code, bool swap_xy, const std::string& out) {
+              const std::string& reading_code, const ExportAxes& axes, const std::string& out) {
   namespace lmc = insitu::hw::lmc;
   auto table = insitu::pattern::CorrectionTable::Load(table_path);
   if (!table.ok()) {
     std::fprintf(stderr, "insitu: %s\n", table.status().message().c_str());
     return ExitCodeFor(table.status());
   }
-  lmc::CorReading reading = lmc::DocumentedReading(swap_xy);
+  const lmc::CorFormat cor_format =
+      format == "lmc1" ? lmc::CorFormat::kLmc1 : lmc::CorFormat::kJcz2;
+  std::optional<lmc::CorReading> reading;
   if (!reading_code.empty()) {
+    if (axes.Given()) {
+      std::fprintf(stderr,
+                   "insitu: --reading and the board's axes (--swap-xy, --flip-x, "
+                   "--flip-y) say the same thing twice: give one\n");
+      return 2;
+    }
     auto r = lmc::ParseCorReading(reading_code);
     if (!r.ok()) {
       std::fprintf(stderr, "insitu: --reading: %s\n", r.status().message().c_str());
       return 2;
     }
     reading = *r;
-  } else {
+  } else if (!axes.Given()) {
     std::ifstream f(table_path);
     const std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
     auto r = lmc::CorReadingOfCsv(text, table_path);
@@ -244,9 +260,28 @@ int CorExport(const std::string& table_path, double lens_mm, const std::string& 
     }
     if (r->has_value()) reading = **r;
   }
-  const auto cor = lmc::FromCorrection(
-      [&](double x, double y) { return table->OffsetAt(x, y); }, lens_mm,
-      format == "lmc1" ? lmc::CorFormat::kLmc1 : lmc::CorFormat::kJcz2, reading);
+  lmc::CorFile cor;
+  std::string stored;
+  if (reading) {
+    cor = lmc::FromCorrection([&](double x, double y) { return table->OffsetAt(x, y); }, lens_mm,
+                              cor_format, *reading);
+    stored = reading->Name();
+  } else {
+    // The documented convention, in the words of a board with these axes.
+    lmc::BoardOptions board;
+    board.lens_mm = lens_mm;
+    board.swap_xy = axes.swap_xy;
+    board.flip_x = axes.flip_x;
+    board.flip_y = axes.flip_y;
+    cor = lmc::BoardTableFromDrive(
+        [&](const Eigen::Vector2d& p) {
+          return Eigen::Vector2d(p + table->OffsetAt(p.x(), p.y()));
+        },
+        board, cor_format);
+    stored = std::string("the documented convention for a board with swap_xy ") +
+             (axes.swap_xy ? "true" : "false") + ", flip_x " + (axes.flip_x ? "true" : "false") +
+             ", flip_y " + (axes.flip_y ? "true" : "false");
+  }
   const insitu::Status saved = lmc::WriteCor(out, cor);
   if (!saved.ok()) {
     std::fprintf(stderr, "insitu: %s\n", saved.message().c_str());
@@ -254,7 +289,7 @@ int CorExport(const std::string& table_path, double lens_mm, const std::string& 
   }
   std::printf("%s (%d x %d nodes) -> %s, %s format, lens %.2f mm, stored as %s\n",
               table_path.c_str(), table->nodes_x(), table->nodes_y(), out.c_str(), format.c_str(),
-              lens_mm, reading.Name().c_str());
+              lens_mm, stored.c_str());
   return 0;
 }
 
@@ -318,11 +353,13 @@ int main(int argc, char** argv) {
   cor_export->add_option("--reading", export_reading,
                          "store the table as this (e.g. dx-dy,y-major,--); default: the CSV's "
                          "'# reading:' comment (cor import writes it), else the documented "
-                         "convention for the board (--swap-xy)");
-  bool export_swap_xy = false;
-  cor_export->add_flag("--swap-xy", export_swap_xy,
-                       "the board's lmc.swap_xy: its second axis word drives galvo x, the first "
-                       "mirror (for the documented convention)");
+                         "convention in the words of a board with --swap-xy, --flip-x, --flip-y");
+  ExportAxes export_axes;
+  cor_export->add_flag("--swap-xy", export_axes.swap_xy,
+                       "the board's lmc.swap_xy: its second position word drives galvo x, the "
+                       "first mirror (the table is stored in the board's own words)");
+  cor_export->add_flag("--flip-x", export_axes.flip_x, "the board's lmc.flip_x");
+  cor_export->add_flag("--flip-y", export_axes.flip_y, "the board's lmc.flip_y");
   cor_export->add_option("--out", cor_file, ".cor file to write")->required();
 
   CLI::App* pattern = app.add_subcommand("pattern", "vector drawings (SVG, DXF, HPGL) to mark");
@@ -363,7 +400,7 @@ int main(int argc, char** argv) {
   if (inspect->parsed()) return PatternInspect(inspect_file, inspect_out, inspect_options);
   if (cor_import->parsed()) return CorImport(cor_in, cor_out, import_reading);
   if (cor_export->parsed()) {
-    return CorExport(table_in, lens_mm, cor_format, export_reading, export_swap_xy, cor_file);
+    return CorExport(table_in, lens_mm, cor_format, export_reading, export_axes, cor_file);
   }
   return 2;
 }

@@ -192,6 +192,7 @@ bool LinearDriveHead::Offset(const Vector2d& p_mm, Vector2d* offset_mm) const {
 }
 
 Status CorPhysicsOptions::Validate() const {
+  if (!(quantum_mm >= 0)) return InvalidArgument("quantum_mm must be >= 0");
   if (!(std::isfinite(lens_mm) && lens_mm > 0)) {
     return InvalidArgument("lens_mm must be a positive field width, got " +
                            std::to_string(lens_mm));
@@ -336,8 +337,11 @@ Result<CorReadingChoice> ChooseCorReading(const std::vector<CorReadingCandidate>
     return choice;
   }
   // An affine table (nothing beyond the affine map but rounding) has no distortion to judge
-  // by: the readings that explain it tie, and the convention decides among them.
-  const bool affine = best.nonlinear_rms_mm < 1e-3 * best.table_rms_mm;
+  // by: the readings that explain it tie, and the convention decides among them if it can
+  // (the two documented readings, transposes, tie too on a table symmetric enough).
+  // Rounding to whole units leaves ~0.41 of a unit rms as a vector beyond any map.
+  const bool affine =
+      best.nonlinear_rms_mm < std::max(1e-3 * best.table_rms_mm, 0.5 * options.quantum_mm);
   if (best.explained < options.min_explained ||
       (!affine && best.explained_nonlinear < options.min_explained_nonlinear)) {
     char beyond[64];
@@ -357,8 +361,10 @@ Result<CorReadingChoice> ChooseCorReading(const std::vector<CorReadingCandidate>
   if (choice.tied.size() == 1) {
     choice.chosen = choice.best;
     choice.decided_by_physics = true;
-    choice.evidence = "the two-mirror head model: " + pct(choice.best) + " against " +
-                      named(choice.runner_up) + " for the next";
+    choice.evidence =
+        "the two-mirror head model: " + pct(choice.best) +
+        (choice.runner_up < 0 ? std::string(", the only reading")
+                              : " against " + named(choice.runner_up) + " for the next");
     if (!candidates[choice.best].documented && !documented.empty()) {
       choice.warning =
           "the physics reads the table as " + candidates[choice.best].name +

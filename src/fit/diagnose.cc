@@ -336,6 +336,25 @@ Result<Diagnosis> Diagnose(const FieldData& input, const DiagnoseOptions& o) {
   // leading-order ones it holds, judged against the completed leading-order model (tried
   // earlier, its tilts would stand in for a rotation not yet entered), and if it takes their
   // place, selection goes on from there.
+  // The model so far with `extra` beside it: its BIC and fit, or nothing when the fit fails.
+  struct Extended {
+    double bic;
+    FitResult fit;
+  };
+  const auto fit_with = [&](std::initializer_list<const Effect*> extra,
+                            const FitOptions& start) -> std::optional<Extended> {
+    std::vector<const Effect*> trial = current;
+    trial.insert(trial.end(), extra);
+    auto r = FitEffects(data, trial, {}, start);
+    if (!r.ok()) return std::nullopt;
+    return Extended{Bic(r->rss_mm2, m, r->parameters), *r};
+  };
+  // Two effects entering together (a pair, or simpler effects in place of one).
+  struct Pair {
+    const Effect* a;
+    const Effect* b;
+    Extended model;
+  };
   for (int round = 0; round < 2; ++round) {
     while (static_cast<int>(current.size() - nuisance) < o.max_effects) {
       // Every candidate fitted jointly with the model so far, best BIC first.
@@ -412,13 +431,7 @@ Result<Diagnosis> Diagnose(const FieldData& input, const DiagnoseOptions& o) {
         // and a shear there). They enter together if the held-out points confirm them.
         // (Tried only while a pair still fits under max_effects.)
         const size_t p_taken = taken->effect->param_names().size();
-        struct Simpler {
-          const Effect* a;
-          const Effect* b;
-          double bic;
-          FitResult fit;
-        };
-        std::optional<Simpler> simpler;
+        std::optional<Pair> simpler;
         const size_t top = std::min<size_t>(candidates.size(), 6);
         for (size_t i = 0; i < top; ++i) {
           for (size_t j = i + 1; j < top; ++j) {
@@ -428,14 +441,13 @@ Result<Diagnosis> Diagnose(const FieldData& input, const DiagnoseOptions& o) {
               continue;
             }
             if (a->param_names().size() + b->param_names().size() > p_taken) continue;
-            std::vector<const Effect*> trial = current;
-            trial.push_back(a);
-            trial.push_back(b);
-            auto r = FitEffects(data, trial, {}, warm);
-            if (!r.ok()) continue;
-            const double pair_bic = Bic(r->rss_mm2, m, r->parameters);
-            if (pair_bic < taken->bic && (!simpler || pair_bic < simpler->bic)) {
-              simpler = Simpler{a, b, pair_bic, *r};
+            // Better than the one taken, and strongly better than each of the two alone
+            // (else one of them is a bystander fitted to noise).
+            const std::optional<Extended> r = fit_with({a, b}, warm);
+            if (r && r->bic < taken->bic &&
+                r->bic + o.min_delta_bic <= std::min(candidates[i].bic, candidates[j].bic) &&
+                (!simpler || r->bic < simpler->model.bic)) {
+              simpler = Pair{a, b, *r};
             }
           }
         }
@@ -443,15 +455,15 @@ Result<Diagnosis> Diagnose(const FieldData& input, const DiagnoseOptions& o) {
         // is real and the pair only holds the effect that comes next (a pincushion with its
         // lens term, and a rotation).
         if (simpler) {
+          int checked = 0;
           for (const Effect* e : {simpler->a, simpler->b}) {
             if (Excludes(e->name(), taken->effect->name())) continue;
-            std::vector<const Effect*> trial = current;
-            trial.push_back(taken->effect);
-            trial.push_back(e);
-            auto r = FitEffects(data, trial, {}, warm);
-            if (r.ok() && Bic(r->rss_mm2, m, r->parameters) <= simpler->bic) simpler.reset();
+            ++checked;
+            const std::optional<Extended> r = fit_with({taken->effect, e}, warm);
+            if (r && r->bic <= simpler->model.bic) simpler.reset();
             if (!simpler) break;
           }
+          if (checked == 0) simpler.reset();  // nothing to hold the one taken against
         }
         if (simpler) {
           std::vector<const Effect*> trial = current;
@@ -463,12 +475,12 @@ Result<Diagnosis> Diagnose(const FieldData& input, const DiagnoseOptions& o) {
                               " together explain more than " + taken->effect->name() +
                               " with no more parameters: taken in its place");
             for (const Effect* e : {simpler->a, simpler->b}) {
-              d.effects.push_back(Entered(*e, simpler->bic - bic, *trial_cv));
+              d.effects.push_back(Entered(*e, simpler->model.bic - bic, *trial_cv));
               current.push_back(e);
             }
-            bic = simpler->bic;
+            bic = simpler->model.bic;
             cv = *trial_cv;
-            best_fit = simpler->fit;
+            best_fit = simpler->model.fit;
             continue;
           }
         }
@@ -485,33 +497,25 @@ Result<Diagnosis> Diagnose(const FieldData& input, const DiagnoseOptions& o) {
       // strongest candidates are tried jointly under the same tests (BIC, held-out error).
       if (static_cast<int>(current.size() - nuisance) + 2 > o.max_effects) break;
       const size_t top = std::min<size_t>(candidates.size(), 4);
-      struct Pair {
-        const Candidate* a;
-        const Candidate* b;
-        double bic;
-        FitResult fit;
-      };
       std::vector<Pair> pairs;
       for (size_t i = 0; i < top; ++i) {
         for (size_t j = i + 1; j < top; ++j) {
-          if (Excludes(candidates[i].effect->name(), candidates[j].effect->name())) continue;
-          std::vector<const Effect*> trial = current;
-          trial.push_back(candidates[i].effect);
-          trial.push_back(candidates[j].effect);
-          auto r = FitEffects(data, trial);
-          if (!r.ok()) continue;
-          pairs.push_back({&candidates[i], &candidates[j], Bic(r->rss_mm2, m, r->parameters), *r});
+          const Effect* a = candidates[i].effect;
+          const Effect* b = candidates[j].effect;
+          if (Excludes(a->name(), b->name())) continue;
+          const std::optional<Extended> r = fit_with({a, b}, FitOptions{});
+          if (r) pairs.push_back({a, b, *r});
         }
       }
       std::sort(pairs.begin(), pairs.end(),
-                [](const Pair& x, const Pair& y) { return x.bic < y.bic; });
+                [](const Pair& x, const Pair& y) { return x.model.bic < y.model.bic; });
       const Pair* pair = nullptr;
       double pair_cv = cv;
       for (const Pair& pr : pairs) {
-        if (bic - pr.bic < 2 * o.min_delta_bic) break;
+        if (bic - pr.model.bic < 2 * o.min_delta_bic) break;
         std::vector<const Effect*> trial = current;
-        trial.push_back(pr.a->effect);
-        trial.push_back(pr.b->effect);
+        trial.push_back(pr.a);
+        trial.push_back(pr.b);
         auto trial_cv = CrossValidatedRms(data, trial, fold_of, folds);
         if (!trial_cv.ok() || !(*trial_cv < (1.0 - o.min_cv_improvement) * cv)) continue;
         pair = &pr;
@@ -519,13 +523,13 @@ Result<Diagnosis> Diagnose(const FieldData& input, const DiagnoseOptions& o) {
         break;
       }
       if (pair == nullptr) break;
-      for (const Candidate* c : {pair->a, pair->b}) {
-        d.effects.push_back(Entered(*c->effect, pair->bic - bic, pair_cv));  // BIC of the pair
-        current.push_back(c->effect);
+      for (const Effect* e : {pair->a, pair->b}) {
+        d.effects.push_back(Entered(*e, pair->model.bic - bic, pair_cv));  // BIC of the pair
+        current.push_back(e);
       }
-      bic = pair->bic;
+      bic = pair->model.bic;
       cv = pair_cv;
-      best_fit = pair->fit;
+      best_fit = pair->model.fit;
     }
     if (round == 1 || !try_head()) break;
   }

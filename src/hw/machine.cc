@@ -230,6 +230,20 @@ Result<Machine> CreateMachineOn(const MachineConfig& config,
     auto opened = OpenLmc(config.lmc, world);
     if (!opened.ok()) return role_error(Role::kScanner, opened.status());
     m.scanner = std::move(*opened);
+    if (config.lmc.correction_file.empty()) {
+      m.warnings.push_back(
+          "lmc.correction names no table: none is uploaded, and insitu takes the board to "
+          "apply none (a field.cor made here assumes so); a board that still holds another "
+          "program's table corrects twice");
+    } else if (config.lmc.transport == "sim_board" && world &&
+               world->options().scan_head.own_correction) {
+      m.warnings.push_back(
+          "the simulated head corrects itself (world.scan_head.own_correction: true) and the "
+          "board applies " +
+          config.lmc.correction_file +
+          " on top: the field is corrected twice (set own_correction: false for a head "
+          "driven linearly, as behind a real LMC board)");
+    }
   }
   const std::string camera = DeviceFor(config, Role::kCamera);
   if (camera == "sim") {

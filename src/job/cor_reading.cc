@@ -49,6 +49,7 @@ Result<CorByPhysics> ReadCorByPhysics(const std::string& path, const std::string
   }
   fit::CorPhysicsOptions options;
   options.lens_mm = r.cor.lens_mm();
+  options.quantum_mm = r.cor.format == lmc::CorFormat::kJcz2 ? 1.0 / r.cor.scale : 0.0;
   auto choice = fit::ChooseCorReading(candidates, options);
   if (!choice.ok()) return choice.status().Prefixed(path);
   r.choice = std::move(*choice);
@@ -76,7 +77,8 @@ Result<CorByPhysics> ReadCorByPhysics(const std::string& path, const std::string
                 pct(next));
   r.summary = what;
   if (!r.forced) r.evidence = "why this reading: " + r.choice.evidence;
-  if (lmc::IsDocumentedReading(r.readings[r.used])) {
+  // A table of zeros says nothing of the wiring.
+  if (lmc::IsDocumentedReading(r.readings[r.used]) && r.choice.fits[r.used].table_rms_mm > 0) {
     r.wiring = lmc::FirstMirrorOnWord2(r.readings[r.used])
                    ? "the head's first mirror is on the board's second axis word: insitu's "
                      "galvo x (the first mirror) needs lmc.swap_xy: true on this board"

@@ -970,11 +970,15 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
       // the measured correction composed with what the controller does now, in the documented
       // convention for the board's axes.
       const auto whole = WholeTable(*machine.scanner, previous->head.model.design, offset_at);
-      const double lens_mm = head_info.table_field_mm > 0 ? head_info.table_field_mm
-                                                          : 2.0 * head_info.field_half_size_mm;
-      const auto cor = hw::lmc::FromCorrection(
-          whole, lens_mm, hw::lmc::CorFormat::kJcz2,
-          hw::lmc::DocumentedReading(machine.scanner->FirstMirrorOnWord2()));
+      hw::lmc::BoardOptions board;
+      board.lens_mm = head_info.table_field_mm > 0 ? head_info.table_field_mm
+                                                   : 2.0 * head_info.field_half_size_mm;
+      board.swap_xy = head_info.table_swap_xy;
+      board.flip_x = head_info.table_flip_x;
+      board.flip_y = head_info.table_flip_y;
+      const auto cor = hw::lmc::BoardTableFromDrive(
+          [&](const Vector2d& p) { return Vector2d(p + whole(p.x(), p.y())); }, board,
+          hw::lmc::CorFormat::kJcz2);
       if (hw::lmc::WriteCor((dir / "field.cor").string(), cor).ok()) {
         report.artifacts["field_cor"] = "field.cor";
       }

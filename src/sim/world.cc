@@ -156,6 +156,7 @@ const Scene& SimWorld::scene() const { return *scene_; }
 const ScanOptics& SimWorld::true_optics() const { return *true_optics_; }
 
 bool SimWorld::CommandToAngles(const Eigen::Vector3d& p, MirrorAngles* angles) const {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);  // the board's correction may change
   // The head's correction table is built from its design geometry; the mirrors' zero errors,
   // and any field effects the world carries (measured reality), are what the real head adds
   // on top.
@@ -180,9 +181,17 @@ bool SimWorld::CommandToAngles(const Eigen::Vector3d& p, MirrorAngles* angles) c
 }
 
 void SimWorld::SetBoardCorrection(
-    std::function<Eigen::Vector2d(const Eigen::Vector2d&)> correction) {
+    const void* owner, std::function<Eigen::Vector2d(const Eigen::Vector2d&)> correction) {
   std::lock_guard<std::recursive_mutex> lock(mutex_);
   board_correction_ = std::move(correction);
+  board_correction_owner_ = owner;
+}
+
+void SimWorld::ClearBoardCorrection(const void* owner) {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  if (board_correction_owner_ != owner) return;
+  board_correction_ = {};
+  board_correction_owner_ = nullptr;
 }
 
 Status SimWorld::StartPointerLine(const Eigen::Vector3d& from, const Eigen::Vector3d& to,

@@ -223,6 +223,23 @@ TEST(LmcCor, AHeadsTableRoundTripsThroughTheBoardToTheSameMarks) {
     }
     std::printf("  on a board of the other wiring: worst %.0f um\n", wrong_worst * 1e3);
     EXPECT_GT(wrong_worst, 0.1);
+    // The board-word writer gives the same file where the board has no flips.
+    const auto drive = [&](const Vector2d& p) { return Vector2d(p + correction(p.x(), p.y())); };
+    ASSERT_TRUE(WriteCor(again, BoardTableFromDrive(drive, o, CorFormat::kJcz2)).ok());
+    EXPECT_TRUE(Bytes(path) == Bytes(again)) << "BoardTableFromDrive differs from FromCorrection";
+    // A board with flipped axes: the table is in its words, node by node, and lands as well.
+    for (const auto& [fx, fy] : {std::pair{true, false}, {false, true}, {true, true}}) {
+      BoardOptions flipped = o;
+      flipped.flip_x = fx;
+      flipped.flip_y = fy;
+      const std::vector<Vector2d> through =
+          landed(flipped, BoardTableFromDrive(drive, flipped, CorFormat::kJcz2), &asked);
+      double flipped_worst = 0;
+      for (size_t k = 0; k < through.size(); ++k) {
+        flipped_worst = std::max(flipped_worst, (through[k] - asked[k]).norm());
+      }
+      EXPECT_LE(flipped_worst, 0.005) << "flip_x " << fx << ", flip_y " << fy;
+    }
   }
   // And a machine whose board gets a file comes up, the file uploaded as stored.
   const std::string path = Temp("insitu_sim_head_upload.cor");

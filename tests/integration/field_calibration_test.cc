@@ -47,6 +47,24 @@ std::string Slurp(const std::string& path) {
   return s.str();
 }
 
+// rms distance (um) between where points landed and where they were asked, after the best
+// rigid fit (the machine's galvo frame may sit a rigid motion away from the world's).
+double RigidRmsUm(const std::vector<Eigen::Vector2d>& asked,
+                  const std::vector<Eigen::Vector2d>& landed) {
+  Eigen::MatrixXd a(2, asked.size()), l(2, landed.size());
+  for (size_t i = 0; i < asked.size(); ++i) {
+    a.col(i) = asked[i];
+    l.col(i) = landed[i];
+  }
+  const Eigen::MatrixXd rigid = Eigen::umeyama(a, l, false);
+  double ss = 0;
+  for (size_t i = 0; i < asked.size(); ++i) {
+    ss += (rigid.topLeftCorner(2, 2) * asked[i] + rigid.topRightCorner(2, 1) - landed[i])
+              .squaredNorm();
+  }
+  return std::sqrt(ss / asked.size()) * 1e3;
+}
+
 TEST(FieldCalibrationJob, AsBuiltHeadIsMeasuredCorrectedAndUsed) {
   KeepTheWorld();
   const fs::path dir = fs::temp_directory_path() / "insitu_field_calibration_test";
@@ -122,19 +140,7 @@ TEST(FieldCalibrationJob, AsBuiltHeadIsMeasuredCorrectedAndUsed) {
       asked.push_back(p.head<2>());
       landed.push_back(spot.head<2>());
     }
-    Eigen::MatrixXd a(2, asked.size()), l(2, landed.size());
-    for (size_t i = 0; i < asked.size(); ++i) {
-      a.col(i) = asked[i];
-      l.col(i) = landed[i];
-    }
-    const Eigen::MatrixXd rigid = Eigen::umeyama(a, l, false);
-    double ss = 0;
-    for (size_t i = 0; i < asked.size(); ++i) {
-      const Eigen::Vector2d mapped =
-          rigid.topLeftCorner(2, 2) * asked[i] + rigid.topRightCorner(2, 1);
-      ss += (mapped - landed[i]).squaredNorm();
-    }
-    return std::sqrt(ss / asked.size()) * 1e3;
+    return RigidRmsUm(asked, landed);
   };
   const double truth_rms_um = truth_rms(*set);
   std::printf("truth: corrected marks within %.2f um rms of where asked\n", truth_rms_um);
@@ -168,7 +174,7 @@ TEST(FieldCalibrationJob, AsBuiltHeadIsMeasuredCorrectedAndUsed) {
     config.lmc.board.lens_mm = 2.0 * sh.field_half_size_mm;
     auto machine = hw::CreateMachineOn(config, board_world);
     ASSERT_TRUE(machine.ok()) << machine.status().ToString();
-    std::vector<Eigen::Vector2d> asked, landed, uncorrected;
+    std::vector<Eigen::Vector2d> asked, landed;
     std::mt19937 rng(5);
     std::uniform_real_distribution<double> u(-60.0, 60.0);
     for (int i = 0; i < 200; ++i) {
@@ -179,18 +185,7 @@ TEST(FieldCalibrationJob, AsBuiltHeadIsMeasuredCorrectedAndUsed) {
       asked.push_back(p.head<2>());
       landed.push_back(ray.focal_point_in_world.head<2>());
     }
-    Eigen::MatrixXd a(2, asked.size()), l(2, landed.size());
-    for (size_t i = 0; i < asked.size(); ++i) {
-      a.col(i) = asked[i];
-      l.col(i) = landed[i];
-    }
-    const Eigen::MatrixXd rigid = Eigen::umeyama(a, l, false);
-    double ss = 0;
-    for (size_t i = 0; i < asked.size(); ++i) {
-      ss += (rigid.topLeftCorner(2, 2) * asked[i] + rigid.topRightCorner(2, 1) - landed[i])
-                .squaredNorm();
-    }
-    const double board_um = std::sqrt(ss / asked.size()) * 1e3;
+    const double board_um = RigidRmsUm(asked, landed);
     std::printf("field.cor through an LMC board on the linear head: marks within %.2f um rms\n",
                 board_um);
     EXPECT_LE(board_um, 10.0);

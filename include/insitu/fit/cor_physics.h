@@ -114,6 +114,9 @@ struct CorPhysicsOptions {
   // Of the part beyond an affine map. Real EzCad tables: 63 % and 79 % in the reading chosen
   // (EzCad builds its tables quadrant by quadrant, which no head does); a table of noise ~0.
   double min_explained_nonlinear = 0.3;
+  // The table's storage step (a JCZ file's whole units: lens / 65536), mm; 0: exact. What is
+  // left beyond an affine map below half of it is rounding, not distortion.
+  double quantum_mm = 0.0;
   double ambiguous_margin = 0.05;
 
   Status Validate() const;

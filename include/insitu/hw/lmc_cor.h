@@ -35,6 +35,7 @@
 #include <vector>
 
 #include "insitu/core/status.h"
+#include "insitu/hw/lmc_options.h"
 
 namespace insitu::hw::lmc {
 
@@ -103,6 +104,15 @@ Result<CorFile> ReadCor(const std::string& path);
 // finite), device_error (cannot write). A CorFile as ReadCor returned it is written back byte
 // for byte.
 Status WriteCor(const std::string& path, const CorFile& cor);
+
+// The table a board set up as `board` (lens, swap_xy, flip_x, flip_y) needs so that a command
+// p (galvo frame, mm) reaches the galvos as drive_mm(p): built node by node in the board's own
+// words (node k at inner k % 65 along word 1, outer k / 65 along word 2, as the board applies
+// it) and stored in the documented convention (the error the board subtracts), whole units.
+// With no flips it is FromCorrection(drive - p, DocumentedReading(swap_xy)); with flips only
+// this one is right. A non-finite drive is kept for WriteCor to refuse.
+CorFile BoardTableFromDrive(const std::function<Eigen::Vector2d(const Eigen::Vector2d&)>& drive_mm,
+                            const BoardOptions& board, CorFormat format);
 
 // A correction table as the board takes it: 65 x 65 (dx, dy) offsets in units, x outer.
 struct BoardCorrection {

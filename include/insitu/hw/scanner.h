@@ -48,8 +48,10 @@ struct ScannerInfo {
   // The head has an output wired to the side camera's trigger input (RunTriggeredSweep).
   bool trigger_output = false;
   // The field a correction table for this controller spans (an LMC board's lens: 65536
-  // units), mm; 0: twice field_half_size_mm.
+  // units), mm; 0: twice field_half_size_mm. And how its position words map onto the galvo
+  // frame (an LMC board's swap_xy, flip_x, flip_y), which decides how a table is stored.
   double table_field_mm = 0.0;
+  bool table_swap_xy = false, table_flip_x = false, table_flip_y = false;
 };
 
 // A scan as one run of the head, pacing the camera: for each line the pointer goes to the
@@ -122,10 +124,6 @@ class Scanner {
     (void)drive_mm;
     return false;
   }
-  // For DriveCommand's table: whether the board's second position word drives galvo x, the
-  // first mirror (the board's swap_xy), which decides how a table for it is stored.
-  virtual bool FirstMirrorOnWord2() const { return false; }
-
   // Arming enables the marking laser for ExecuteList; disarm when the job ends or fails.
   virtual Status Arm() = 0;
   virtual Status Disarm() = 0;

@@ -128,8 +128,12 @@ class SimWorld {
   bool CommandToAngles(const Eigen::Vector3d& point_in_galvo, MirrorAngles* angles) const;
   // A board between the host and the head (an LMC board) applies its correction table to
   // every command on the head's clock before the head gets it (galvo frame, mm, z unchanged);
-  // empty: none. The emulated board sets it when a table has been uploaded.
-  void SetBoardCorrection(std::function<Eigen::Vector2d(const Eigen::Vector2d&)> correction);
+  // empty: none. The emulated board `owner` sets it when a table has been uploaded; Clear
+  // removes it only if that board set the one in place (several boards may come and go on one
+  // world).
+  void SetBoardCorrection(const void* owner,
+                          std::function<Eigen::Vector2d(const Eigen::Vector2d&)> correction);
+  void ClearBoardCorrection(const void* owner);
 
   // Z stage.
   Status MoveStage(double z_mm);
@@ -261,6 +265,7 @@ class SimWorld {
   std::unique_ptr<ScanOptics> true_optics_;
   std::unique_ptr<ScanOptics> design_optics_;
   std::function<Eigen::Vector2d(const Eigen::Vector2d&)> board_correction_;
+  const void* board_correction_owner_ = nullptr;
   std::unique_ptr<CameraModel> camera_full_;
   double now_s_ = 0.0;
   std::optional<PointerProgram> pointer_;

@@ -27,6 +27,9 @@ class BoardScanner : public Scanner {
     // The floor in ToUnits puts +lens/2 one unit past 0xFFFF: half the lens minus one unit.
     i.field_half_size_mm = 0.5 * options_.lens_mm * (1.0 - 2.0 / 65536.0);
     i.table_field_mm = options_.lens_mm;
+    i.table_swap_xy = options_.swap_xy;
+    i.table_flip_x = options_.flip_x;
+    i.table_flip_y = options_.flip_y;
     i.focus_range_mm = options_.focus == Focus::kDaZWord ? options_.focus_range_mm : 0.0;
     i.clock_us = 10.0;
     i.trigger_output = options_.trigger_port != 0;
@@ -37,7 +40,6 @@ class BoardScanner : public Scanner {
     *drive_mm = ApplyBoardTableMm(uploaded_, options_, command_mm);
     return true;
   }
-  bool FirstMirrorOnWord2() const override { return options_.swap_xy; }
 
   Status StartPointerLine(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
                           double speed_mm_per_s) override {

@@ -299,7 +299,7 @@ struct SimBoard::Impl {
       case kWriteCorTable:
         // A new table: until its last line the board corrects nothing.
         log.correction.clear();
-        world->SetBoardCorrection({});
+        world->ClearBoardCorrection(this);
         break;
       case kWriteCorLine: {
         const auto value = [](uint16_t w) {
@@ -311,7 +311,7 @@ struct SimBoard::Impl {
           // through it (ApplyBoardTable: the documented convention).
           BoardCorrection table;
           table.offsets = log.correction;
-          world->SetBoardCorrection([table, o = options](const Eigen::Vector2d& command_mm) {
+          world->SetBoardCorrection(this, [table, o = options](const Eigen::Vector2d& command_mm) {
             return ApplyBoardTableMm(table, o, command_mm);
           });
         }
@@ -334,7 +334,7 @@ SimBoard::SimBoard(std::shared_ptr<sim::SimWorld> world, BoardOptions options)
 SimBoard::~SimBoard() {
   impl_->abort = true;
   impl_->Join();
-  impl_->world->SetBoardCorrection({});  // the head is no longer behind this board
+  impl_->world->ClearBoardCorrection(impl_.get());  // the head is no longer behind this board
 }
 
 Status SimBoard::Write(const uint8_t* data, size_t size) {

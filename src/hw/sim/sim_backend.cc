@@ -15,6 +15,12 @@ class SimScanner : public Scanner {
     return {"simulated 3D scan head", sh.field_half_size_mm, sh.focus_range_mm, sh.clock_us,
             /*trigger_output=*/true};
   }
+  // A head driven linearly (no correction of its own) gets the command as it is.
+  bool DriveCommand(const Eigen::Vector2d& command_mm, Eigen::Vector2d* drive_mm) const override {
+    if (world_->options().scan_head.own_correction) return false;
+    *drive_mm = command_mm;
+    return true;
+  }
   Status StartPointerLine(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
                           double speed_mm_per_s) override {
     INSITU_RETURN_IF_ERROR(InjectedFault());
@@ -72,9 +78,8 @@ class SimScanner : public Scanner {
         return Status(StatusCode::kCancelled,
                       "sweep aborted before line " + std::to_string(i) + ", the pointer is off");
       }
-      INSITU_RETURN_IF_ERROR(
-          world_->StartPointerLine(sweep.lines[i].first, sweep.lines[i].second,
-                                   sweep.speed_mm_per_s));
+      INSITU_RETURN_IF_ERROR(world_->StartPointerLine(sweep.lines[i].first, sweep.lines[i].second,
+                                                      sweep.speed_mm_per_s));
       world_->Advance(sweep.settle_s);
       world_->TriggerPulse();
       world_->Advance(sweep.dwell_s);
@@ -304,7 +309,8 @@ class SimProfiler : public Profiler {
       world_->Advance(1.0);
       return Status(StatusCode::kDeviceError,
                     "line profiler: no profile within 1 s of the trigger (injected: it stopped "
-                    "sending after " + std::to_string(stop) + " profiles)");
+                    "sending after " +
+                        std::to_string(stop) + " profiles)");
     }
     ++grabbed_;
     INSITU_ASSIGN_OR_RETURN(sim::SimWorld::ProfileShot shot, world_->GrabProfile());
