@@ -6,14 +6,14 @@
 //   insitu cor export TABLE.csv --lens MM [--format jcz|lmc1] [--reading R] --out FILE.cor
 // Exit codes: 0 done, 1 device or job failure while running (the report says what), 2 bad input
 // (command line, job file, --set, calibration, pattern or data file), 130 interrupted.
+#include <CLI/CLI.hpp>
 #include <poll.h>
 #include <termios.h>
 #include <unistd.h>
 
-#include <CLI/CLI.hpp>
 #include <algorithm>
-#include <atomic>
 #include <cerrno>
+#include <atomic>
 #include <csignal>
 #include <cstdio>
 #include <cstring>
@@ -179,9 +179,8 @@ int CorImport(const std::string& cor_path, const std::string& out,
   auto read = insitu::job::ReadCorByPhysics(cor_path, reading_code);
   if (!read.ok()) {
     std::fprintf(stderr, "insitu: %s\n", read.status().message().c_str());
-    return read.status().code() == insitu::StatusCode::kInvalidArgument
-               ? 2
-               : ExitCodeFor(read.status());
+    return read.status().code() == insitu::StatusCode::kInvalidArgument ? 2
+                                                                         : ExitCodeFor(read.status());
   }
   const std::vector<lmc::CorReading>& readings = read->readings;
   const insitu::fit::CorReadingChoice* choice = &read->choice;
@@ -365,9 +364,8 @@ int main(int argc, char** argv) {
   CLI::App* pattern = app.add_subcommand("pattern", "vector drawings (SVG, DXF, HPGL) to mark");
   pattern->require_subcommand(1);
   CLI::App* inspect = pattern->add_subcommand(
-      "inspect",
-      "what a drawing will mark: extents, units, entities drawn and skipped, closed "
-      "areas, and preview.png with the hatch at scale");
+      "inspect", "what a drawing will mark: extents, units, entities drawn and skipped, closed "
+                 "areas, and preview.png with the hatch at scale");
   std::string inspect_file, inspect_out;
   insitu::job::PatternInspectOptions inspect_options;
   inspect->add_option("file", inspect_file, ".svg, .dxf or .plt/.hpgl drawing")->required();
@@ -375,9 +373,8 @@ int main(int argc, char** argv) {
                       "folder for preview.png (default insitu-out/pattern-<name>)");
   inspect->add_option("--scale", inspect_options.scale, "as the mark job's placement.scale")
       ->check(CLI::PositiveNumber);
-  inspect
-      ->add_option("--hatch-spacing", inspect_options.hatch_spacing_mm,
-                   "mm on the part, as the mark job's hatch.spacing_mm (default 0.04)")
+  inspect->add_option("--hatch-spacing", inspect_options.hatch_spacing_mm,
+                      "mm on the part, as the mark job's hatch.spacing_mm (default 0.04)")
       ->check(CLI::PositiveNumber);
   inspect->add_option("--hatch-angles", inspect_options.hatch_angles_deg,
                       "degrees, as the mark job's hatch.angles_deg (default 0)");

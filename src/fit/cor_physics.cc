@@ -13,14 +13,15 @@
 
 #include <ceres/ceres.h>
 
+#include "fit/ceres_support.h"
+#include "insitu/optics/newton.h"
+
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 
-#include "fit/ceres_support.h"
-#include "insitu/optics/newton.h"
 #include "insitu/optics/scan_head.h"
 
 namespace insitu::fit {

@@ -17,60 +17,39 @@ namespace insitu::hw {
 
 const char* RoleKey(Role role) {
   switch (role) {
-    case Role::kScanner:
-      return "scanner";
-    case Role::kCamera:
-      return "camera";
-    case Role::kCoaxial:
-      return "coaxial";
-    case Role::kStage:
-      return "stage";
-    case Role::kAxis:
-      return "axis";
-    case Role::kProfiler:
-      return "profiler";
-    case Role::kOperator:
-      return "operator";
+    case Role::kScanner: return "scanner";
+    case Role::kCamera: return "camera";
+    case Role::kCoaxial: return "coaxial";
+    case Role::kStage: return "stage";
+    case Role::kAxis: return "axis";
+    case Role::kProfiler: return "profiler";
+    case Role::kOperator: return "operator";
   }
   return "?";
 }
 
 const char* RoleName(Role role) {
   switch (role) {
-    case Role::kScanner:
-      return "scan head";
-    case Role::kCamera:
-      return "side camera";
-    case Role::kCoaxial:
-      return "coaxial camera";
-    case Role::kStage:
-      return "Z stage";
-    case Role::kAxis:
-      return "axis";
-    case Role::kProfiler:
-      return "line profiler";
-    case Role::kOperator:
-      return "operator";
+    case Role::kScanner: return "scan head";
+    case Role::kCamera: return "side camera";
+    case Role::kCoaxial: return "coaxial camera";
+    case Role::kStage: return "Z stage";
+    case Role::kAxis: return "axis";
+    case Role::kProfiler: return "line profiler";
+    case Role::kOperator: return "operator";
   }
   return "?";
 }
 
 bool Machine::Has(Role role) const {
   switch (role) {
-    case Role::kScanner:
-      return scanner != nullptr;
-    case Role::kCamera:
-      return camera != nullptr;
-    case Role::kCoaxial:
-      return coaxial != nullptr;
-    case Role::kStage:
-      return stage != nullptr;
-    case Role::kAxis:
-      return axis != nullptr;
-    case Role::kProfiler:
-      return profiler != nullptr;
-    case Role::kOperator:
-      return person != nullptr;
+    case Role::kScanner: return scanner != nullptr;
+    case Role::kCamera: return camera != nullptr;
+    case Role::kCoaxial: return coaxial != nullptr;
+    case Role::kStage: return stage != nullptr;
+    case Role::kAxis: return axis != nullptr;
+    case Role::kProfiler: return profiler != nullptr;
+    case Role::kOperator: return person != nullptr;
   }
   return false;
 }
@@ -131,7 +110,8 @@ Result<std::unique_ptr<Scanner>> OpenLmc(const LmcDeviceConfig& l,
 }
 
 Result<std::unique_ptr<Camera>> OpenAravisCamera(const AravisDeviceConfig& a,
-                                                 std::shared_ptr<sim::SimWorld> world, Machine* m) {
+                                                 std::shared_ptr<sim::SimWorld> world,
+                                                 Machine* m) {
   aravis::CameraOptions options = a.camera;
   if (!a.simulate_on.empty()) {
     if (options.trigger != "software") {
@@ -141,9 +121,9 @@ Result<std::unique_ptr<Camera>> OpenAravisCamera(const AravisDeviceConfig& a,
           "(camera: sim with the world's camera.head_trigger models a camera on the head's "
           "trigger output)");
     }
-    INSITU_ASSIGN_OR_RETURN(
-        std::shared_ptr<aravis::SimulatedGigECamera> served,
-        aravis::SimulatedGigECamera::Start(world, a.simulate_on, world->options().camera.serial));
+    INSITU_ASSIGN_OR_RETURN(std::shared_ptr<aravis::SimulatedGigECamera> served,
+                            aravis::SimulatedGigECamera::Start(world, a.simulate_on,
+                                                               world->options().camera.serial));
     served->SetLostPacketRatio(a.lost_packet_ratio);
     m->peers.push_back(served);
     options.device = a.simulate_on;
@@ -168,8 +148,8 @@ Result<std::unique_ptr<Profiler>> OpenAravisProfiler(const AravisProfilerConfig&
     }
     std::shared_ptr<Profiler> source = std::move(simulated);
     INSITU_ASSIGN_OR_RETURN(std::shared_ptr<aravis::SimulatedGigEProfiler> served,
-                            aravis::SimulatedGigEProfiler::Start(source, a.simulate_on,
-                                                                 world->options().profiler.serial));
+                            aravis::SimulatedGigEProfiler::Start(
+                                source, a.simulate_on, world->options().profiler.serial));
     served->SetLostPacketRatio(a.lost_packet_ratio);
     m->peers.push_back(served);
     options.device = a.simulate_on;
@@ -180,9 +160,8 @@ Result<std::unique_ptr<Profiler>> OpenAravisProfiler(const AravisProfilerConfig&
 
 // A simulated device the world does not have (a coaxial camera on a head without one).
 Status Absent(Role role, const char* world_key) {
-  return FailedPrecondition(std::string("machine.") + RoleKey(role) +
-                            ": sim, but the world has no " + RoleName(role) + " (world." +
-                            world_key + ".present is false)");
+  return FailedPrecondition(std::string("machine.") + RoleKey(role) + ": sim, but the world has no " +
+                            RoleName(role) + " (world." + world_key + ".present is false)");
 }
 
 }  // namespace
@@ -192,19 +171,16 @@ Result<Machine> CreateMachineOn(const MachineConfig& config,
   for (Role r : kRoles) {
     const std::string& d = DeviceField(config, r);
     static const std::map<Role, std::vector<std::string>> kKnown = {
-        {Role::kScanner, {"sim", "lmc", "none"}},
-        {Role::kCamera, {"sim", "aravis", "none"}},
-        {Role::kCoaxial, {"sim", "none"}},
-        {Role::kStage, {"sim", "grbl", "none"}},
-        {Role::kAxis, {"sim", "none"}},
-        {Role::kProfiler, {"sim", "aravis", "none"}},
+        {Role::kScanner, {"sim", "lmc", "none"}},    {Role::kCamera, {"sim", "aravis", "none"}},
+        {Role::kCoaxial, {"sim", "none"}},           {Role::kStage, {"sim", "grbl", "none"}},
+        {Role::kAxis, {"sim", "none"}},              {Role::kProfiler, {"sim", "aravis", "none"}},
         {Role::kOperator, {"sim", "person", "none"}}};
     const std::vector<std::string>& known = kKnown.at(r);
     if (d.empty() || std::find(known.begin(), known.end(), d) != known.end()) continue;
     std::string list;
     for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
-    return NotFound(std::string("machine.") + RoleKey(r) + ": no device '" + d +
-                    "' (known: " + list + ")");
+    return NotFound(std::string("machine.") + RoleKey(r) + ": no device '" + d + "' (known: " +
+                    list + ")");
   }
   Machine m;
   m.real = IsRealCell(config);

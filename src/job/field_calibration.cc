@@ -59,9 +59,9 @@ using Eigen::Vector3d;
 
 struct FieldSpec {
   MachineSpec machine;
-  int n = 11;                  // grid nodes per side
-  double half_size_mm = 60.0;  // grid from -half to +half in x and y
-  bool check_points = true;    // the cell centres, measured but never fitted
+  int n = 11;                    // grid nodes per side
+  double half_size_mm = 60.0;    // grid from -half to +half in x and y
+  bool check_points = true;      // the cell centres, measured but never fitted
   // spiral: discs marked by the marking laser (seed 003); cross: seed 001's marked "+";
   // pointer: the non-destructive variant, the pointer's spot parked on a matte card (measures
   // the pointer's field, not the laser's).
@@ -88,13 +88,13 @@ struct FieldSpec {
   // Stage heights of the pointer's spots: two or more let the mirror separation be fitted
   // (it tilts the chief rays, which only spots off the focal plane see).
   std::vector<double> pointer_stage_z_mm{0.0, 15.0};
-  bool verify = true;  // the second pass
+  bool verify = true;            // the second pass
   // The second pass must measure at most this at the check points, or nothing is saved; 0:
   // 10 um for marked targets (the bar), 50 um for pointer spots (~19 um scatter each).
   double max_error_rms_um_after = 0.0;
   fit::HeadFitOptions head_fit;
-  bool residual_table = true;  // physics plus a table of what it leaves
-  int correction_nodes = 65;   // correction.csv: nodes per side over the grid
+  bool residual_table = true;    // physics plus a table of what it leaves
+  int correction_nodes = 65;     // correction.csv: nodes per side over the grid
   std::string output_path;
 };
 
@@ -174,8 +174,7 @@ Status ReadSpec(const LoadedJob& job, FieldSpec* s, hw::MachineConfig* machine) 
     p.Read("exposure_ms", &s->pointer_exposure_ms);
     p.Read("stage_z_mm", &s->pointer_stage_z_mm);
     if (p.ok() && !(s->pointer_exposure_ms > 0)) p.Fail("exposure_ms", "must be > 0");
-    if (p.ok() && s->pointer_stage_z_mm.empty())
-      p.Fail("stage_z_mm", "must list at least one height");
+    if (p.ok() && s->pointer_stage_z_mm.empty()) p.Fail("stage_z_mm", "must list at least one height");
   }
   if (r.Has("fit")) {
     ConfigReader& f = r.Section("fit");
@@ -190,9 +189,8 @@ Status ReadSpec(const LoadedJob& job, FieldSpec* s, hw::MachineConfig* machine) 
   r.Read("max_error_rms_um_after", &s->max_error_rms_um_after);
   if (r.ok() && !(s->max_error_rms_um_after >= 0)) r.Fail("max_error_rms_um_after", "must be >= 0");
   if (s->max_error_rms_um_after == 0) {
-    s->max_error_rms_um_after = s->route == "coaxial"         ? 3.0
-                                : s->target_kind == "pointer" ? 50.0
-                                                              : 10.0;
+    s->max_error_rms_um_after =
+        s->route == "coaxial" ? 3.0 : s->target_kind == "pointer" ? 50.0 : 10.0;
   }
   ConfigReader& out = r.Section("output");
   out.Require("calibration");
@@ -208,9 +206,9 @@ Status ReadSpec(const LoadedJob& job, FieldSpec* s, hw::MachineConfig* machine) 
 }
 
 struct Target {
-  Vector2d nominal;  // where it is asked for, galvo frame
+  Vector2d nominal;         // where it is asked for, galvo frame
   bool check = false;
-  Vector3d command;                   // what was sent
+  Vector3d command;         // what was sent
   std::optional<Vector2d> plate;      // measured centre, plate frame (edge circle)
   std::optional<Vector2d> plate_mec;  // seed 003's centre (minimum enclosing circle), plate frame
 };
@@ -227,10 +225,7 @@ std::vector<Target> Layout(const FieldSpec& s) {
     for (int j = 0; j + 1 < s.n; ++j) {
       for (int i = 0; i + 1 < s.n; ++i) {
         t.push_back({{-s.half_size_mm + (i + 0.5) * step, -s.half_size_mm + (j + 0.5) * step},
-                     true,
-                     {},
-                     {},
-                     {}});
+                     true, {}, {}, {}});
       }
     }
   }
@@ -242,8 +237,7 @@ std::vector<Target> Layout(const FieldSpec& s) {
 using Strokes = std::vector<std::vector<Vector2d>>;
 Result<Strokes> TargetStrokes(const FieldSpec& s) {
   if (s.target_kind == "cross") {
-    INSITU_ASSIGN_OR_RETURN(std::vector<pattern::Segment2> bars,
-                            pattern::CrossTargetStrokes(s.cross));
+    INSITU_ASSIGN_OR_RETURN(std::vector<pattern::Segment2> bars, pattern::CrossTargetStrokes(s.cross));
     Strokes out;
     for (const pattern::Segment2& b : bars) out.push_back({b.a, b.b});
     return out;
@@ -283,9 +277,9 @@ Result<hw::GalvoList> TargetList(const FieldSpec& s, const Strokes& shape,
     for (const std::vector<Vector2d>& stroke : shape) {
       for (size_t k = 0; k < stroke.size(); ++k) {
         const Vector2d p = c0.head<2>() + j * stroke[k];
-        list.entries.push_back(
-            {k == 0 ? hw::GalvoListEntry::Kind::kJump : hw::GalvoListEntry::Kind::kMark,
-             Vector3d(p.x(), p.y(), 0.0)});
+        list.entries.push_back({k == 0 ? hw::GalvoListEntry::Kind::kJump
+                                       : hw::GalvoListEntry::Kind::kMark,
+                                Vector3d(p.x(), p.y(), 0.0)});
       }
     }
   }
@@ -335,8 +329,7 @@ Status MeasureTargets(const Frame& frame, const calib::CameraIntrinsics& cam,
     if (best < 0) {
       std::string why;
       for (const vision::RejectedBlob& r : rejected) {
-        if ((r.center_px - predicted).norm() < 0.4 * pitch_px)
-          why = ": a blob there was rejected: " + r.reason;
+        if ((r.center_px - predicted).norm() < 0.4 * pitch_px) why = ": a blob there was rejected: " + r.reason;
       }
       warnings->push_back(where + " not found" + why);
       continue;
@@ -382,8 +375,7 @@ Status MeasureCrossTargets(const Frame& frame, const calib::CameraIntrinsics& ca
   for (Target& t : *targets) {
     t.plate.reset();
     t.plate_mec.reset();
-    const Vector2d centre =
-        (plate_from_galvo * Vector3d(t.nominal.x(), t.nominal.y(), 0.0)).head<2>();
+    const Vector2d centre = (plate_from_galvo * Vector3d(t.nominal.x(), t.nominal.y(), 0.0)).head<2>();
     const Vector2d predicted = pixel_of(centre);
     const std::string where = Where(t, predicted);
     // The finest native sampling at the target: the longer of the frame's steps for 1 mm
@@ -421,10 +413,9 @@ Status MeasureCrossTargets(const Frame& frame, const calib::CameraIntrinsics& ca
     }
     if (best == nullptr) {
       warnings->push_back(where + " not found" +
-                          (crosses->empty()
-                               ? std::string(": no cross in its neighbourhood")
-                               : ": " + std::to_string(crosses->size()) +
-                                     " crosses near it, none within 40 % of the pitch"));
+                          (crosses->empty() ? std::string(": no cross in its neighbourhood")
+                                            : ": " + std::to_string(crosses->size()) +
+                                                  " crosses near it, none within 40 % of the pitch"));
       continue;
     }
     t.plate = centre + mm_per_px * (best->centre_px - Vector2d(half, half));
@@ -458,26 +449,24 @@ Status WriteFieldCsv(const std::vector<Target>& targets, const Eigen::Isometry2d
   return WriteFileAtomically(path, os.str());
 }
 
-// The whole correction table for a board that drives this head linearly: at p, the linear
-// drive of the command the measured correction asks for there (`delta(p)`: what to add to a
-// command of the controller as it is now). The controller's drive comes from the scanner when
-// it holds the table itself (an LMC board: its uploaded table), else from the head's design
-// (a head that corrects itself: its controller inverts the design geometry, and the linear
-// drive of those mirror angles is f_design times them). So the table replaces the board's own
-// rather than adding to it. Galvo frame, mm.
-std::function<Vector2d(double, double)> WholeTable(const hw::Scanner& scanner,
-                                                   const optics::HeadGeometry& design,
-                                                   std::function<Vector2d(double, double)> delta) {
-  return [&scanner, design, delta = std::move(delta)](double x, double y) {
-    const Vector2d p(x, y);
-    const Vector2d c = p + delta(x, y);
+// What a board driving this head linearly must send for a command p so that the spot lands
+// where the measured correction puts it (`delta(p)`: what to add to a command of the
+// controller as it is now): the linear drive the controller gives p + delta(p) today. It comes
+// from the scanner when it holds the table itself (an LMC board: its uploaded table), else from
+// the head's design (a head that corrects itself: its controller inverts the design geometry,
+// and the linear drive of those mirror angles is f_design times them). A table built from it
+// replaces the board's own rather than adding to it. Galvo frame, mm.
+std::function<Vector2d(const Vector2d&)> ControllerDrive(
+    const hw::Scanner& scanner, const optics::HeadGeometry& design,
+    std::function<Vector2d(double, double)> delta) {
+  return [&scanner, design = optics::ScanOptics(design), delta = std::move(delta)](
+             const Vector2d& p) {
+    const Vector2d c = p + delta(p.x(), p.y());
     Vector2d drive;
-    if (!scanner.DriveCommand(c, &drive)) {
-      optics::MirrorAngles a;
-      if (!optics::ScanOptics(design).Solve(c.x(), c.y(), 0.0, &a)) return Vector2d(c - p);
-      drive = design.focal_length_mm * Vector2d(a.x_rad, a.y_rad);
-    }
-    return Vector2d(drive - p);
+    if (scanner.DriveCommand(c, &drive)) return drive;
+    optics::MirrorAngles a;
+    if (!design.Solve(c.x(), c.y(), 0.0, &a)) return c;  // beyond the design: drive as commanded
+    return Vector2d(design.geometry().focal_length_mm * Vector2d(a.x_rad, a.y_rad));
   };
 }
 
@@ -600,8 +589,8 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
     if (WriteFieldCsv(all, Eigen::Isometry2d::Identity(), (dir / "field.csv").string()).ok()) {
       report.artifacts["field"] = "field.csv";
     }
-    log->info("coaxial: {:.2f} um rms before, {:.2f} um after at {} check points", r->rms_um_before,
-              r->rms_um_after, r->check.size());
+    log->info("coaxial: {:.2f} um rms before, {:.2f} um after at {} check points",
+              r->rms_um_before, r->rms_um_after, r->check.size());
     if (!refused.empty()) return finish(false, refused);
     return finish(true, "");
   }
@@ -609,9 +598,9 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
   const double pitch = 2.0 * spec.half_size_mm / (spec.n - 1);
 
   // 1. The plate's plane from the board lying on it.
-  for (const Status& st :
-       {machine.camera->SetBinning(1), machine.stage->MoveTo(0.0), machine.scanner->StopPointer(),
-        machine.person->ClearTable(), machine.camera->SetExposure(spec.board_exposure_ms * 1e3)}) {
+  for (const Status& st : {machine.camera->SetBinning(1), machine.stage->MoveTo(0.0),
+                           machine.scanner->StopPointer(), machine.person->ClearTable(),
+                           machine.camera->SetExposure(spec.board_exposure_ms * 1e3)}) {
     if (!st.ok()) return fail("plate: ", st);
   }
   const Status laid = machine.person->PlaceBoardOnPlate();
@@ -713,8 +702,7 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
       for (Target& t : targets) {
         const Vector3d c(t.nominal.x(), t.nominal.y(), 0.0);
         if (!command_for(c, &t.command)) {
-          return OutOfRange("the correction cannot reach (" + Num(c.x()) + ", " + Num(c.y()) +
-                            ") mm");
+          return OutOfRange("the correction cannot reach (" + Num(c.x()) + ", " + Num(c.y()) + ") mm");
         }
         commands.push_back(t.command);
       }
@@ -759,13 +747,10 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
     if (!fresh.ok()) return fail("plate: ", fresh);
   }
   int found_before = 0;
-  const Status first = mark_and_measure(
-      "targets",
-      [](const Vector3d& p, Vector3d* c) {
-        *c = p;
-        return true;
-      },
-      &found_before);
+  const Status first = mark_and_measure("targets", [](const Vector3d& p, Vector3d* c) {
+    *c = p;
+    return true;
+  }, &found_before);
   if (!first.ok()) return fail("targets: ", first);
   const int expected = static_cast<int>(targets.size());
   report.metrics["targets_expected"] = expected;
@@ -777,8 +762,7 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
   std::vector<std::string> missing;
   for (const Target& t : targets) {
     if (!t.plate) {
-      if (!t.check)
-        missing.push_back("(" + Num(t.nominal.x(), 2) + ", " + Num(t.nominal.y(), 2) + ")");
+      if (!t.check) missing.push_back("(" + Num(t.nominal.x(), 2) + ", " + Num(t.nominal.y(), 2) + ")");
       continue;
     }
     (t.check ? check : grid).push_back({t.command, *t.plate});
@@ -795,11 +779,11 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
   // calibration with marked targets), the fitted head is still the marking beam's.
   const optics::BeamPath& known = previous->head.pointer;
   const bool known_pointer =
-      previous->head.measured &&
-      (known.offset_x_mrad != 0.0 || known.offset_y_mrad != 0.0 || known.lateral_colour_pct != 0.0);
-  const optics::BeamPath target_beam = by_pointer && known_pointer ? known : optics::BeamPath{};
-  auto physics =
-      fit::HeadFieldFit::Fit(grid, previous->head.model.design, spec.head_fit, target_beam);
+      previous->head.measured && (known.offset_x_mrad != 0.0 || known.offset_y_mrad != 0.0 ||
+                                  known.lateral_colour_pct != 0.0);
+  const optics::BeamPath target_beam =
+      by_pointer && known_pointer ? known : optics::BeamPath{};
+  auto physics = fit::HeadFieldFit::Fit(grid, previous->head.model.design, spec.head_fit, target_beam);
   if (!physics.ok()) return finish(false, "fit: " + physics.status().ToString());
   for (const fit::HeadParamFit& p : physics->params()) {
     report.metrics["head_" + p.name] = p.value;
@@ -809,8 +793,7 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
   const std::vector<fit::GalvoSample> check_g = physics->ToGalvo(check);
   const std::vector<fit::GalvoSample>& judge = check_g.empty() ? grid_g : check_g;
   if (check_g.empty()) {
-    report.warnings.push_back(
-        "no check points: the models are judged on the grid they were fitted to");
+    report.warnings.push_back("no check points: the models are judged on the grid they were fitted to");
   }
   const ErrorStats before = Stats(judge);
   report.metrics["check_points"] = static_cast<double>(check_g.size());
@@ -830,8 +813,7 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
     const int stride = (spec.n - 1) / (sub - 1);
     std::vector<fit::GalvoSample> nodes;
     for (int j = 0; j < spec.n; j += stride) {
-      for (int i = 0; i < spec.n; i += stride)
-        nodes.push_back(grid_g[static_cast<size_t>(j) * spec.n + i]);
+      for (int i = 0; i < spec.n; i += stride) nodes.push_back(grid_g[static_cast<size_t>(j) * spec.n + i]);
     }
     auto m = fit::BilinearFieldModel::Fit(nodes);
     if (m.ok()) model_metric("bilinear_" + std::to_string(sub), *m);
@@ -861,8 +843,8 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
   report.metrics["residual_table_used"] = combined ? 1.0 : 0.0;
   const fit::FieldModel& chosen = combined ? static_cast<const fit::FieldModel&>(*combined)
                                            : static_cast<const fit::FieldModel&>(*physics);
-  log->info("field: {:.1f} um rms before at {} check points; physics leaves {:.1f} um",
-            before.rms_um, check_g.size(), fit::PredictionError(*physics, judge).rms_mm * 1e3);
+  log->info("field: {:.1f} um rms before at {} check points; physics leaves {:.1f} um", before.rms_um,
+            check_g.size(), fit::PredictionError(*physics, judge).rms_mm * 1e3);
 
   // The measured head as the calibration holds it.
   calib::HeadCalibration head = previous->head;
@@ -890,8 +872,7 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
   head.residual_mm = combined ? combined->residual().table() : optics::GridTable();
   if (!pointer_spots.empty()) {
     std::vector<fit::GalvoSample> spots;
-    for (const PointerSpot& p : pointer_spots)
-      spots.push_back({p.cmd, physics->galvo_from_plate() * p.plate});
+    for (const PointerSpot& p : pointer_spots) spots.push_back({p.cmd, physics->galvo_from_plate() * p.plate});
     double z_lo = 1e300, z_hi = -1e300;
     for (const fit::GalvoSample& g : spots) {
       z_lo = std::min(z_lo, g.cmd.z());
@@ -907,9 +888,8 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
       report.metrics["head_mirror_separation_mm"] = path->mirror_separation_mm;
       report.metrics["head_mirror_separation_mm_stderr"] = path->stderr_mirror_separation_mm;
     } else {
-      report.warnings.push_back(
-          "the pointer's spots lie on one plane: the mirror separation "
-          "stays the design's (pointer.stage_z_mm lists one height)");
+      report.warnings.push_back("the pointer's spots lie on one plane: the mirror separation "
+                                "stays the design's (pointer.stage_z_mm lists one height)");
     }
     report.metrics["pointer_offset_x_mrad"] = path->path.offset_x_mrad;
     report.metrics["pointer_offset_y_mrad"] = path->path.offset_y_mrad;
@@ -928,8 +908,7 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
         const double x = -reach + reach * i / 20.0, y = -reach + reach * j / 20.0;
         Vector3d c;
         const double lim = head_info.field_half_size_mm;
-        if (!corrected({x, y, 0.0}, &c) ||
-            (lim > 0 && (std::abs(c.x()) > lim || std::abs(c.y()) > lim))) {
+        if (!corrected({x, y, 0.0}, &c) || (lim > 0 && (std::abs(c.x()) > lim || std::abs(c.y()) > lim))) {
           return finish(false, "the correction would send (" + Num(x, 2) + ", " + Num(y, 2) +
                                    ") mm outside the head's range (+-" + Num(lim, 2) +
                                    " mm): reduce grid.half_size_mm");
@@ -948,8 +927,7 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
       }
       if (counting) ++clamped;
       const double cx = std::clamp(x, -reach, reach), cy = std::clamp(y, -reach, reach);
-      return corrected({cx, cy, 0.0}, &c) ? Vector2d(c.head<2>() - Vector2d(cx, cy))
-                                          : Vector2d(0, 0);
+      return corrected({cx, cy, 0.0}, &c) ? Vector2d(c.head<2>() - Vector2d(cx, cy)) : Vector2d(0, 0);
     };
     const int m = spec.correction_nodes;
     std::vector<double> xs(m), ys(m);
@@ -969,7 +947,6 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
       // The whole table a board driving this head needs (docs/calibration.md, "field.cor"):
       // the measured correction composed with what the controller does now, in the documented
       // convention for the board's axes.
-      const auto whole = WholeTable(*machine.scanner, previous->head.model.design, offset_at);
       hw::lmc::BoardOptions board;
       board.lens_mm = head_info.table_field_mm > 0 ? head_info.table_field_mm
                                                    : 2.0 * head_info.field_half_size_mm;
@@ -977,7 +954,7 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
       board.flip_x = head_info.table_flip_x;
       board.flip_y = head_info.table_flip_y;
       const auto cor = hw::lmc::BoardTableFromDrive(
-          [&](const Vector2d& p) { return Vector2d(p + whole(p.x(), p.y())); }, board,
+          ControllerDrive(*machine.scanner, previous->head.model.design, offset_at), board,
           hw::lmc::CorFormat::kJcz2);
       if (hw::lmc::WriteCor((dir / "field.cor").string(), cor).ok()) {
         report.artifacts["field_cor"] = "field.cor";
@@ -985,8 +962,7 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
     }
     if (clamped > 0) {
       report.warnings.push_back(
-          std::to_string(clamped) +
-          " nodes of correction.csv / field.cor beyond the measured "
+          std::to_string(clamped) + " nodes of correction.csv / field.cor beyond the measured "
           "grid lie where the corrected command would leave the head's range: they take the "
           "correction at the grid's edge");
     }
@@ -1009,10 +985,8 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
     }
     return SaveFieldArrowsPng(a, (dir / file).string());
   };
-  if (arrows(
-          "field error before correction, " + Num(before.rms_um, 1) + " um rms at the check points",
-          0.0, "field_before.png")
-          .ok()) {
+  if (arrows("field error before correction, " + Num(before.rms_um, 1) + " um rms at the check points",
+             0.0, "field_before.png").ok()) {
     report.artifacts["field_before"] = "field_before.png";
   }
 
@@ -1044,8 +1018,7 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
     if (n_lost > 0) {
       return finish(false, "second pass: " + std::to_string(n_lost) +
                                " targets measured in the first pass were not found through the "
-                               "correction (" +
-                               lost + (n_lost > 6 ? ", ..." : "") +
+                               "correction (" + lost + (n_lost > 6 ? ", ..." : "") +
                                " mm; the warnings say why); the calibration was not saved");
     }
     std::vector<fit::GalvoSample> after_check, after_grid;
@@ -1062,10 +1035,8 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
     report.metrics["field_error_rms_um_after_grid"] = Stats(after_grid).rms_um;
     report.metrics["distortion_removed_pct"] =
         before.rms_um > 0 ? 100.0 * (1.0 - after.rms_um / before.rms_um) : 0.0;
-    if (arrows(
-            "field error after correction, " + Num(after.rms_um, 1) + " um rms at the check points",
-            0.0, "field_after.png")
-            .ok()) {
+    if (arrows("field error after correction, " + Num(after.rms_um, 1) + " um rms at the check points",
+               0.0, "field_after.png").ok()) {
       report.artifacts["field_after"] = "field_after.png";
     }
     log->info("field: {:.1f} um rms after ({:.1f} % removed)", after.rms_um,
@@ -1073,8 +1044,7 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
     // On a head already within the bar, before and after are both the measurement's own
     // scatter (~2 um): "less than before" is then a coin toss, and only the bar applies.
     const bool must_improve = before.rms_um > spec.max_error_rms_um_after;
-    if (after.rms_um > spec.max_error_rms_um_after ||
-        (must_improve && after.rms_um >= before.rms_um)) {
+    if (after.rms_um > spec.max_error_rms_um_after || (must_improve && after.rms_um >= before.rms_um)) {
       return finish(false, "second pass: the corrected field measures " + Num(after.rms_um, 1) +
                                " um rms at the check points (before: " + Num(before.rms_um, 1) +
                                " um; accepted: up to " + Num(spec.max_error_rms_um_after, 1) +

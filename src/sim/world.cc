@@ -64,7 +64,8 @@ std::unique_ptr<MarkMap> SimWorld::NewMarkMap() const {
   // A panel's grooves are half a millimetre wide and a few hundred um deep: 10 um cells hold
   // their shape to a fraction of a um between the profiler's 25 um points, at a sixth of the
   // memory of the 4 um cells that marks on metal need (a 200 mm panel's grooves: ~100 MB).
-  return std::make_unique<MarkMap>(options_.part.kind == "panel" ? 0.010 : MarkMap::kFineCellMm);
+  return std::make_unique<MarkMap>(options_.part.kind == "panel" ? 0.010
+                                                                 : MarkMap::kFineCellMm);
 }
 
 void SimWorld::NewSettleError() {
@@ -424,19 +425,20 @@ Status SimWorld::ExecuteMarkingList(const std::vector<ListMove>& moves, const Ma
         const double f0 = 2.0 * pulse_energy_j / (M_PI * std::pow(w_mm * 0.1, 2));
         const PartOptions& part = options_.part;
         const bool film = hit.on_part && part.kind == "panel" && part.maskant_thickness_mm > 0;
-        const double threshold = film          ? part.maskant_ablation_threshold_j_per_cm2
+        const double threshold = film           ? part.maskant_ablation_threshold_j_per_cm2
                                  : hit.on_part ? part.ablation_threshold_j_per_cm2
                                                : options_.stage.plate_ablation_threshold_j_per_cm2;
         pulse.diameter_mm = f0 > threshold ? w_mm * std::sqrt(2.0 * std::log(f0 / threshold)) : 0.0;
         pulse.beam_radius_mm = w_mm;
         if (film) {
-          marks_->AddFilmCrater(
-              hit.point_in_world.x(), hit.point_in_world.y(), w_mm, std::log(f0 / threshold),
-              part.maskant_ablation_depth_um, 1e3 * part.maskant_thickness_mm,
-              std::log(f0 / part.ablation_threshold_j_per_cm2), part.ablation_depth_um);
+          marks_->AddFilmCrater(hit.point_in_world.x(), hit.point_in_world.y(), w_mm,
+                                std::log(f0 / threshold), part.maskant_ablation_depth_um,
+                                1e3 * part.maskant_thickness_mm,
+                                std::log(f0 / part.ablation_threshold_j_per_cm2),
+                                part.ablation_depth_um);
         } else {
-          marks_->AddCrater(hit.point_in_world.x(), hit.point_in_world.y(), 0.5 * pulse.diameter_mm,
-                            w_mm, part.ablation_depth_um);
+          marks_->AddCrater(hit.point_in_world.x(), hit.point_in_world.y(),
+                            0.5 * pulse.diameter_mm, w_mm, part.ablation_depth_um);
         }
         if (pulse.diameter_mm > 0) ambient_valid_ = false;  // the cameras see the new marks
         pulses_.push_back(pulse);
@@ -643,8 +645,8 @@ Result<Frame> SimWorld::TakeTriggered(double wall_timeout_s) {
   };
   const bool woke = triggered_wake_.wait_until(lock, deadline, ready);
   if (!woke) {
-    return Status(StatusCode::kDeviceError,
-                  "camera: no triggered frame within " + std::to_string(wall_timeout_s) + " s");
+    return Status(StatusCode::kDeviceError, "camera: no triggered frame within " +
+                                                std::to_string(wall_timeout_s) + " s");
   }
   if (triggered_.empty()) {
     return Status(StatusCode::kDeviceError,
@@ -705,12 +707,13 @@ Result<Frame> SimWorld::Expose(double t0, double* link_s_out) {
           // A patterned part (the reticle's lines are far finer than a pixel here): its
           // reflectance over the pixel's footprint, not at one point.
           if (hit.on_part) {
-            albedo =
-                scene_->PartAlbedoAt(hit.point_in_world.x(), hit.point_in_world.y(), footprint_mm);
+            albedo = scene_->PartAlbedoAt(hit.point_in_world.x(), hit.point_in_world.y(),
+                                          footprint_mm);
           }
           if (!hit.on_board) {
-            albedo *= MarkFactor(hit.point_in_world.x(), hit.point_in_world.y(), 0.5 * footprint_mm,
-                                 hit.on_part);
+            albedo *=
+                MarkFactor(hit.point_in_world.x(), hit.point_in_world.y(), 0.5 * footprint_mm,
+                           hit.on_part);
           }
           // Diffuse room light from above: surfaces facing up get all of it, walls half.
           const double shade = 0.5 + 0.5 * std::max(0.0, hit.normal.z());

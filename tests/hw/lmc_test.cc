@@ -138,20 +138,11 @@ TEST(Lmc, ATriggeredSweepRaisesTheTriggerBitOncePerLine) {
     return std::make_pair(static_cast<uint16_t>(kJumpTo), u);
   };
   const std::vector<std::pair<uint16_t, std::array<uint16_t, 2>>> expected{
-      jump(units(-10, 0)),
-      {kDelayTime, {500, 0}},
-      {kWritePortList, {0x0102, 0}},
-      {kDelayTime, {10, 0}},
-      {kWritePortList, {0x0100, 0}},
-      jump(units(10, 0)),
-      jump(units(6, 0)),
-      jump(units(10, 1)),
-      {kDelayTime, {500, 0}},
-      {kWritePortList, {0x0102, 0}},
-      {kDelayTime, {10, 0}},
-      {kWritePortList, {0x0100, 0}},
-      jump(units(-10, 1)),
-      jump(units(-6, 1))};
+      jump(units(-10, 0)), {kDelayTime, {500, 0}},   {kWritePortList, {0x0102, 0}},
+      {kDelayTime, {10, 0}}, {kWritePortList, {0x0100, 0}}, jump(units(10, 0)),
+      jump(units(6, 0)),   jump(units(10, 1)),     {kDelayTime, {500, 0}},
+      {kWritePortList, {0x0102, 0}}, {kDelayTime, {10, 0}}, {kWritePortList, {0x0100, 0}},
+      jump(units(-10, 1)), jump(units(-6, 1))};
   ASSERT_EQ(body.size(), expected.size()) << text;
   for (size_t k = 0; k < body.size(); ++k) {
     EXPECT_EQ(body[k][0], expected[k].first) << "command " << k << "\n" << text;

@@ -76,9 +76,9 @@ TEST(FieldCalibrationJob, AsBuiltHeadIsMeasuredCorrectedAndUsed) {
     ASSERT_TRUE(calibrated.ok()) << calibrated.status().ToString();
   }
   const std::vector<std::string> gauge = {"scan.line_spacing_mm=1.0"};
-  auto before = testing::RunShippedJob("accuracy_step_gauge.yaml",
-                                       With(With(kAsBuilt, gauge), {"machine.calibration=" + cal}),
-                                       (dir / "accuracy_before").string());
+  auto before = testing::RunShippedJob(
+      "accuracy_step_gauge.yaml", With(With(kAsBuilt, gauge), {"machine.calibration=" + cal}),
+      (dir / "accuracy_before").string());
   ASSERT_TRUE(before.ok()) << before.status().ToString();
   // The head's 0.47 % scale, absorbed silently by the camera's pose: the gauge comes out short
   // by several times the 0.05 mm bar.
@@ -90,11 +90,11 @@ TEST(FieldCalibrationJob, AsBuiltHeadIsMeasuredCorrectedAndUsed) {
       (dir / "field").string());
   ASSERT_TRUE(field.ok()) << field.status().ToString();
   auto& m = field->metrics;
-  std::printf(
-      "field: %.1f um rms before, %.2f um after (%.2f %% removed); physics %.2f, "
-      "bilinear 11 %.2f, quadrant %.1f um\n",
-      m["field_error_rms_um_before"], m["field_error_rms_um_after"], m["distortion_removed_pct"],
-      m["model_physics_rms_um"], m["model_bilinear_11_rms_um"], m["model_quadrant_rms_um"]);
+  std::printf("field: %.1f um rms before, %.2f um after (%.2f %% removed); physics %.2f, "
+              "bilinear 11 %.2f, quadrant %.1f um\n",
+              m["field_error_rms_um_before"], m["field_error_rms_um_after"],
+              m["distortion_removed_pct"], m["model_physics_rms_um"], m["model_bilinear_11_rms_um"],
+              m["model_quadrant_rms_um"]);
   EXPECT_EQ(m["targets_found"], m["targets_expected"]);
   EXPECT_EQ(m["check_points"], 100.0);
   EXPECT_GT(m["field_error_rms_um_before"], 100.0);  // 0.47 % over a +-60 mm field
@@ -204,23 +204,22 @@ TEST(FieldCalibrationJob, AsBuiltHeadIsMeasuredCorrectedAndUsed) {
   // correction is good to that: <= 40 um rms after (about twice the scatter: the spot measured
   // after, and the noise the fit passes into the correction), a fifth of the ~175 um the
   // pointer's field shows before (its -0.3 % lateral colour takes back part of the 0.47 %).
-  auto spots =
-      testing::RunShippedJob("field_calibration.yaml",
-                             With(kAsBuilt, {"machine.calibration=" + cal,
-                                             "output.calibration=" + (dir / "p.yaml").string(),
-                                             "target.kind=pointer", "grid.n=7"}),
-                             (dir / "pointer").string());
+  auto spots = testing::RunShippedJob(
+      "field_calibration.yaml",
+      With(kAsBuilt, {"machine.calibration=" + cal, "output.calibration=" + (dir / "p.yaml").string(),
+                      "target.kind=pointer", "grid.n=7"}),
+      (dir / "pointer").string());
   ASSERT_TRUE(spots.ok()) << spots.status().ToString();
   // Run again on a machine whose pointer path was measured by the marked targets: the spots
   // are taken to the marking beam through it, so marks no longer carry the pointer's -0.3 %
   // lateral colour (~180 um at 60 mm). What is left is the spots' own scatter passed into the
   // correction: <= 40 um, as above.
-  auto respots =
-      testing::RunShippedJob("field_calibration.yaml",
-                             With(kAsBuilt, {"machine.calibration=" + measured,
-                                             "output.calibration=" + (dir / "p2.yaml").string(),
-                                             "target.kind=pointer", "grid.n=7"}),
-                             (dir / "pointer2").string());
+  auto respots = testing::RunShippedJob(
+      "field_calibration.yaml",
+      With(kAsBuilt, {"machine.calibration=" + measured,
+                      "output.calibration=" + (dir / "p2.yaml").string(), "target.kind=pointer",
+                      "grid.n=7"}),
+      (dir / "pointer2").string());
   ASSERT_TRUE(respots.ok()) << respots.status().ToString();
   {
     auto p2 = calib::LoadCalibration((dir / "p2.yaml").string());
@@ -230,8 +229,7 @@ TEST(FieldCalibrationJob, AsBuiltHeadIsMeasuredCorrectedAndUsed) {
     EXPECT_LE(marks_um, 40.0);
   }
   std::printf("pointer variant: %.1f um rms before, %.1f um after\n",
-              spots->metrics["field_error_rms_um_before"],
-              spots->metrics["field_error_rms_um_after"]);
+              spots->metrics["field_error_rms_um_before"], spots->metrics["field_error_rms_um_after"]);
   EXPECT_LE(spots->metrics["field_error_rms_um_after"], 40.0);
   EXPECT_LT(spots->metrics["field_error_rms_um_after"],
             0.2 * spots->metrics["field_error_rms_um_before"]);
@@ -239,12 +237,11 @@ TEST(FieldCalibrationJob, AsBuiltHeadIsMeasuredCorrectedAndUsed) {
   // Seed 001's crosses instead of discs, found in the frame resampled onto the plate: their
   // centres rest on the bars' centre lines (~50 cross-sections each, 5 px wide), a little
   // noisier than a disc's ~150 edge points, so the same bars hold (~3 um after).
-  auto crosses =
-      testing::RunShippedJob("field_calibration.yaml",
-                             With(kAsBuilt, {"machine.calibration=" + cal,
-                                             "output.calibration=" + (dir / "x.yaml").string(),
-                                             "target.kind=cross", "grid.n=7"}),
-                             (dir / "cross").string());
+  auto crosses = testing::RunShippedJob(
+      "field_calibration.yaml",
+      With(kAsBuilt, {"machine.calibration=" + cal, "output.calibration=" + (dir / "x.yaml").string(),
+                      "target.kind=cross", "grid.n=7"}),
+      (dir / "cross").string());
   ASSERT_TRUE(crosses.ok()) << crosses.status().ToString();
   std::printf("cross targets: %.1f um rms before, %.2f um after (%.2f %% removed)\n",
               crosses->metrics["field_error_rms_um_before"],
@@ -256,7 +253,8 @@ TEST(FieldCalibrationJob, AsBuiltHeadIsMeasuredCorrectedAndUsed) {
 
   // The rest of the machine uses what was measured: the gauge's length and heights hold.
   auto after = testing::RunShippedJob(
-      "accuracy_step_gauge.yaml", With(With(kAsBuilt, gauge), {"machine.calibration=" + measured}),
+      "accuracy_step_gauge.yaml",
+      With(With(kAsBuilt, gauge), {"machine.calibration=" + measured}),
       (dir / "accuracy_after").string());
   ASSERT_TRUE(after.ok()) << after.status().ToString();
   std::printf("step gauge: length error %.3f mm before, %.3f mm after; binned height %.3f mm\n",

@@ -70,21 +70,17 @@ TEST(Cli, UnknownKeyIsNamed) {
 }
 
 TEST(Cli, OutOfRangeValuesAreNamed) {
-  const CliRun exposure =
-      Insitu("run " + Job() + " --set camera.exposure_ms=-5 --out /tmp/insitu_cli");
+  const CliRun exposure = Insitu("run " + Job() + " --set camera.exposure_ms=-5 --out /tmp/insitu_cli");
   EXPECT_EQ(exposure.exit_code, 2);
   EXPECT_NE(exposure.err.find("exposure_ms"), std::string::npos) << exposure.err;
   EXPECT_EQ(Lines(exposure.err), 1) << exposure.err;
-  const CliRun spacing =
-      Insitu("run " + Job() + " --set scan.line_spacing_mm=0 --out /tmp/insitu_cli");
+  const CliRun spacing = Insitu("run " + Job() + " --set scan.line_spacing_mm=0 --out /tmp/insitu_cli");
   EXPECT_EQ(spacing.exit_code, 2);
   EXPECT_NE(spacing.err.find("line_spacing_mm"), std::string::npos) << spacing.err;
-  const CliRun world =
-      Insitu("run " + Job() + " --set world.camera.f_number=0 --out /tmp/insitu_cli");
+  const CliRun world = Insitu("run " + Job() + " --set world.camera.f_number=0 --out /tmp/insitu_cli");
   EXPECT_EQ(world.exit_code, 2);
   EXPECT_NE(world.err.find("f_number"), std::string::npos) << world.err;
-  const CliRun type =
-      Insitu("run " + Job() + " --set scan.speed_mm_per_s=fast --out /tmp/insitu_cli");
+  const CliRun type = Insitu("run " + Job() + " --set scan.speed_mm_per_s=fast --out /tmp/insitu_cli");
   EXPECT_EQ(type.exit_code, 2);
   EXPECT_NE(type.err.find("scan.speed_mm_per_s"), std::string::npos) << type.err;
 }
@@ -99,7 +95,7 @@ TEST(Cli, BadSetSyntaxAndUnknownJobKind) {
 
 TEST(Cli, CalibrationForAnotherCameraIsRefused) {
   const CliRun r = Insitu("run " + Job() + " --set world.camera.width_px=2592 " +
-                          "--set world.camera.height_px=1944 --out /tmp/insitu_cli");
+                       "--set world.camera.height_px=1944 --out /tmp/insitu_cli");
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("2592"), std::string::npos) << r.err;
 }
@@ -111,34 +107,32 @@ namespace {
 // A mark job around a pattern section (YAML, indented two spaces under `pattern:`).
 std::string MarkJobWith(const std::string& name, const std::string& pattern,
                         const std::string& extra = "") {
-  return WriteJob(
-      name, "job: mark\nmachine: {backend: sim, calibration: " + std::string(INSITU_SOURCE_DIR) +
-                "/calib/as_designed.yaml}\nworld: " + std::string(INSITU_SOURCE_DIR) +
-                "/config/worlds/default.yaml\n" + "pattern:\n" + pattern + extra);
+  return WriteJob(name, "job: mark\nmachine: {backend: sim, calibration: " + std::string(INSITU_SOURCE_DIR) +
+                            "/calib/as_designed.yaml}\nworld: " +
+                            std::string(INSITU_SOURCE_DIR) + "/config/worlds/default.yaml\n" +
+                            "pattern:\n" + pattern + extra);
 }
 
 // A bad pattern fails before the machine moves: one line naming the job, the pattern and the
 // problem, exit 2, nothing scanned.
 TEST(Cli, MarkJobRefusesBadPatterns) {
   const std::string png = WriteJob("corrupt.png", "this is not an image");
-  const CliRun corrupt =
-      Insitu("run " + MarkJobWith("m1.yaml", "  kind: raster\n  file: " + png + "\n") +
-             " --out /tmp/insitu_cli");
+  const CliRun corrupt = Insitu(
+      "run " + MarkJobWith("m1.yaml", "  kind: raster\n  file: " + png + "\n") + " --out /tmp/insitu_cli");
   EXPECT_EQ(corrupt.exit_code, 2);
   EXPECT_NE(corrupt.err.find("corrupt.png"), std::string::npos) << corrupt.err;
   EXPECT_NE(corrupt.err.find("pattern"), std::string::npos) << corrupt.err;
   EXPECT_EQ(Lines(corrupt.err), 1) << corrupt.err;
 
   const std::string svg = WriteJob("empty.svg", "<svg xmlns=\"http://www.w3.org/2000/svg\"></svg>");
-  const CliRun empty =
-      Insitu("run " + MarkJobWith("m2.yaml", "  kind: svg\n  file: " + svg + "\n") +
-             " --out /tmp/insitu_cli");
+  const CliRun empty = Insitu(
+      "run " + MarkJobWith("m2.yaml", "  kind: svg\n  file: " + svg + "\n") + " --out /tmp/insitu_cli");
   EXPECT_EQ(empty.exit_code, 2);
   EXPECT_NE(empty.err.find("empty.svg"), std::string::npos) << empty.err;
 
-  const CliRun mapping = Insitu(
-      "run " + MarkJobWith("m3.yaml", "  kind: qr\n  data: x\n", "placement: {mapping: bend}\n") +
-      " --out /tmp/insitu_cli");
+  const CliRun mapping = Insitu("run " + MarkJobWith("m3.yaml", "  kind: qr\n  data: x\n",
+                                                     "placement: {mapping: bend}\n") +
+                                " --out /tmp/insitu_cli");
   EXPECT_EQ(mapping.exit_code, 2);
   EXPECT_NE(mapping.err.find("mapping"), std::string::npos) << mapping.err;
 
@@ -174,8 +168,7 @@ TEST(Cli, DiagnoseTheMeasuredFieldAndRefuseBadData) {
   }
   EXPECT_TRUE(fs::exists(out / "residuals.png"));
 
-  const std::string bad =
-      WriteJob("bad_field.csv", "x_cmd_mm,y_cmd_mm,x_meas_mm,y_meas_mm\n0,0,0,0\n1,0,one,0\n");
+  const std::string bad = WriteJob("bad_field.csv", "x_cmd_mm,y_cmd_mm,x_meas_mm,y_meas_mm\n0,0,0,0\n1,0,one,0\n");
   const CliRun r = Insitu("diagnose " + bad + " --out " + out.string());
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("bad_field.csv:3"), std::string::npos) << r.err;

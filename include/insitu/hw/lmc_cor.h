@@ -105,6 +105,12 @@ Result<CorFile> ReadCor(const std::string& path);
 // for byte.
 Status WriteCor(const std::string& path, const CorFile& cor);
 
+// A board's position words (0..65536, the field's centre at 32768, not rounded) for a point of
+// the galvo frame (mm), as a board set up as `board` (lens, swap_xy, flip_x, flip_y) maps them;
+// and back. The encoder's ToUnits rounds the first, the emulator and the tables use both.
+Eigen::Vector2d BoardWordsOf(const Eigen::Vector2d& point_mm, const BoardOptions& board);
+Eigen::Vector2d GalvoMmOf(const Eigen::Vector2d& words, const BoardOptions& board);
+
 // The table a board set up as `board` (lens, swap_xy, flip_x, flip_y) needs so that a command
 // p (galvo frame, mm) reaches the galvos as drive_mm(p): built node by node in the board's own
 // words (node k at inner k % 65 along word 1, outer k / 65 along word 2, as the board applies

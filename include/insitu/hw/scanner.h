@@ -4,12 +4,13 @@
 // the head is armed (ros2_control-style: connected is not armed).
 #pragma once
 
-#include <Eigen/Core>
 #include <atomic>
 #include <functional>
 #include <string>
 #include <utility>
 #include <vector>
+
+#include <Eigen/Core>
 
 #include "insitu/core/status.h"
 
@@ -26,8 +27,8 @@ struct GalvoList {
   std::vector<GalvoListEntry> entries;
   double jump_speed_mm_per_s = 5000.0;
   double mark_speed_mm_per_s = 1000.0;
-  double laser_power = 0.5;           // fraction of full power
-  double laser_frequency_khz = 30.0;  // pulse repetition rate
+  double laser_power = 0.5;             // fraction of full power
+  double laser_frequency_khz = 30.0;    // pulse repetition rate
   double laser_on_delay_us = 0.0, laser_off_delay_us = 0.0;
   double jump_delay_us = 0.0, mark_delay_us = 0.0;
 

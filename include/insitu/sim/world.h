@@ -6,20 +6,21 @@
 // for tests that measure the algorithms against reality.
 #pragma once
 
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 #include <array>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
-#include <cstdint>
 #include <deque>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
 #include <random>
 #include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include "insitu/core/frame.h"
 #include "insitu/core/status.h"
@@ -295,7 +296,7 @@ class SimWorld {
   bool paced_ = false;
   std::chrono::steady_clock::time_point pace_wall0_;
   double pace_virtual0_ = 0.0;
-  std::unique_ptr<MarkMap> marks_;                      // what the pulses ablated, for the cameras
+  std::unique_ptr<MarkMap> marks_;  // what the pulses ablated, for the cameras
   std::unique_ptr<fit::ModelExtension> field_effects_;  // carried by the head (may be empty)
   Eigen::Vector3d last_command_ = Eigen::Vector3d::Zero();
   // The mirrors' settling error since the last jump (repeatability), optical angles.

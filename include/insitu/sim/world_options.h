@@ -45,11 +45,11 @@ struct CoaxialCameraOptions {
   std::string serial = "SIM-C001";
   int width_px = 1024;
   int height_px = 1024;
-  double pixel_on_part_um = 5.0;          // sensor pitch over the magnification, as built
-  double rotation_deg = 0.4;              // sensor x against galvo x, as mounted
-  double numerical_aperture = 0.027;      // 7 mm aperture radius at 255 mm: defocus blur 2 NA dz
-  double psf_sigma_um = 4.3;              // diffraction at 550 nm: 0.21 lambda / NA
-  double focus_offset_mm = 0.0;           // sharp image this far above the marking beam's focus
+  double pixel_on_part_um = 5.0;       // sensor pitch over the magnification, as built
+  double rotation_deg = 0.4;           // sensor x against galvo x, as mounted
+  double numerical_aperture = 0.027;   // 7 mm aperture radius at 255 mm: defocus blur 2 NA dz
+  double psf_sigma_um = 4.3;           // diffraction at 550 nm: 0.21 lambda / NA
+  double focus_offset_mm = 0.0;        // sharp image this far above the marking beam's focus
   double illumination_e_per_ms = 8000.0;  // coaxial LED, electrons per ms on a white pixel
   double full_well_e = 10000.0;
   double read_noise_e = 6.0;
@@ -66,15 +66,15 @@ struct FieldEffectOption {
 };
 
 struct ScanHeadOptions {
-  ScanOpticsGeometry optics;        // as built (the truth)
-  ScanOpticsGeometry design;        // what the head's own correction table assumes
-  double x_zero_offset_mrad = 0.0;  // mechanical zero error of the X mirror (optical angle)
+  ScanOpticsGeometry optics;           // as built (the truth)
+  ScanOpticsGeometry design;           // what the head's own correction table assumes
+  double x_zero_offset_mrad = 0.0;     // mechanical zero error of the X mirror (optical angle)
   double y_zero_offset_mrad = 0.0;
-  double y_mirror_height_mm = 355.0;  // height of the Y-mirror reflection point (seed's point a)
-  double field_half_size_mm = 70.0;   // commands beyond +-this are refused
-  double focus_range_mm = 25.0;       // dynamic focus travel +-
-  double tracking_lag_ms = 0.16;      // first-order lag of the mirrors behind the command
-  double clock_us = 10.0;             // list clock
+  double y_mirror_height_mm = 355.0;   // height of the Y-mirror reflection point (seed's point a)
+  double field_half_size_mm = 70.0;    // commands beyond +-this are refused
+  double focus_range_mm = 25.0;        // dynamic focus travel +-
+  double tracking_lag_ms = 0.16;       // first-order lag of the mirrors behind the command
+  double clock_us = 10.0;              // list clock
   // Where a mirror settles after a jump differs from the last time by this (rms per axis,
   // optical angle): the galvos' repeatability. Scan heads of the intelliSCAN class quote
   // < 2 urad; at 255 mm that is ~0.5 um on the field.
@@ -103,20 +103,20 @@ struct CameraOptions {
   double pixel_pitch_um = 3.45;
   double lens_focal_length_mm = 15.0;
   std::string lens = "FV1520";
-  std::array<double, 2> principal_point_offset_px{6.0, -4.0};         // from the sensor centre
+  std::array<double, 2> principal_point_offset_px{6.0, -4.0};  // from the sensor centre
   double k1 = -0.06, k2 = 0.08, p1 = 0.0002, p2 = -0.0001, k3 = 0.0;  // Brown-Conrady
-  std::array<double, 3> position_mm{-182.0, 1.5, 299.0};              // entrance pupil in the world
-  std::array<double, 3> look_at_mm{0.6, -0.4, 0.0};                   // point on the optical axis
-  double roll_deg = 0.3;                                              // about the optical axis
+  std::array<double, 3> position_mm{-182.0, 1.5, 299.0};  // entrance pupil in the world
+  std::array<double, 3> look_at_mm{0.6, -0.4, 0.0};       // point on the optical axis
+  double roll_deg = 0.3;                                  // about the optical axis
   double f_number = 11.0;
-  double quantum_efficiency = 0.42;  // at 680 nm
+  double quantum_efficiency = 0.42;   // at 680 nm
   double full_well_e = 10000.0;
   double read_noise_e = 8.0;
   double dark_current_e_per_s = 20.0;
   double gain_db = 0.0;
-  int bit_depth = 8;          // 8 or 12
-  double exposure_ms = 50.0;  // initial setting; jobs set their own
-  bool noise = true;          // shot, read and dark noise
+  int bit_depth = 8;                  // 8 or 12
+  double exposure_ms = 50.0;          // initial setting; jobs set their own
+  bool noise = true;                  // shot, read and dark noise
   // The link a frame travels over after its exposure, MB/s (1e6 bytes): GigE's 125 MB/s less
   // 74 bytes of Ethernet, IP, UDP and GVSP framing per 1500-byte packet (~6 %). A frame of n
   // bytes takes n / link to arrive: the rate falls with the region's size as on a real camera.
@@ -131,10 +131,10 @@ struct CameraOptions {
 };
 
 struct LightOptions {
-  double ambient_lux = 300.0;     // room light on the part
-  double speckle_contrast = 0.2;  // std/mean of the stripe intensity from speckle
-  double speckle_grain_px = 0.0;  // 0: from wavelength and f-number (1.22 lambda N)
-  bool shadows = true;            // the part blocks the beam and the camera's view
+  double ambient_lux = 300.0;        // room light on the part
+  double speckle_contrast = 0.2;     // std/mean of the stripe intensity from speckle
+  double speckle_grain_px = 0.0;     // 0: from wavelength and f-number (1.22 lambda N)
+  bool shadows = true;               // the part blocks the beam and the camera's view
 
   Status Validate() const;
 };
@@ -201,9 +201,9 @@ struct PartOptions {
   // the cut (its threshold is ablation_threshold_j_per_cm2 and depth ablation_depth_um), so a
   // groove cut through the film has the metal as its floor.
   std::array<double, 2> panel_size_mm{200.0, 200.0};
-  double panel_thickness_mm = 2.0;     // the aluminium skin
-  double maskant_thickness_mm = 0.31;  // the film (seed 002: grooves 0.3124 +- 0.0148 deep)
-  double panel_bow_mm = 0.0;           // clamping bend, + up
+  double panel_thickness_mm = 2.0;       // the aluminium skin
+  double maskant_thickness_mm = 0.31;    // the film (seed 002: grooves 0.3124 +- 0.0148 deep)
+  double panel_bow_mm = 0.0;             // clamping bend, + up
   // Tooling holes through the skin (the datums a chemical-milling template is pinned to and the
   // inspection locates the part by), centres relative to the panel's centre in its own frame.
   std::vector<std::array<double, 2>> panel_holes_mm{{-50.0, -40.0}, {50.0, -40.0}};
@@ -217,11 +217,11 @@ struct PartOptions {
 };
 
 struct StageOptions {
-  double z_mm = 0.0;  // top of the plate at start
+  double z_mm = 0.0;              // top of the plate at start
   double min_z_mm = -20.0;
   double max_z_mm = 20.0;
   double speed_mm_per_s = 10.0;
-  double plate_albedo = 0.12;                       // black anodised aluminium
+  double plate_albedo = 0.12;     // black anodised aluminium
   double plate_ablation_threshold_j_per_cm2 = 0.5;  // anodised layer, ns pulses at 1064 nm
   // Reflectance of a deep mark relative to the bare plate: ablating the black anodised layer
   // bares the aluminium (diffuse reflectance ~0.5 against 0.12), so marks show light on dark.
@@ -242,13 +242,13 @@ struct StageOptions {
 // (SimWorld::PlaceBoard) the board is out of the way. Corners of the pattern are the inner
 // corners of the squares.
 struct BoardOptions {
-  bool present = false;  // the cell has a board the operator can place
-  int inner_cols = 11;   // inner corners along the board's x
-  int inner_rows = 8;    // inner corners along the board's y
+  bool present = false;          // the cell has a board the operator can place
+  int inner_cols = 11;           // inner corners along the board's x
+  int inner_rows = 8;            // inner corners along the board's y
   double square_mm = 10.0;
-  double margin_mm = 8.0;      // light border around the squares
-  double albedo_dark = 0.04;   // printed black
-  double albedo_light = 0.80;  // white
+  double margin_mm = 8.0;        // light border around the squares
+  double albedo_dark = 0.04;     // printed black
+  double albedo_light = 0.80;    // white
   std::vector<std::array<double, 6>> poses{{0.0, 0.0, 0.0, 0.0, 0.0, 0.0}};
   // Where the operator lays the board flat on the stage plate when asked (field calibration):
   // [x, y, face height above the plate top, rotation about z] (mm, mm, mm, deg). The printed
@@ -269,7 +269,7 @@ struct GantryOptions {
   std::array<double, 6> machine_in_world{0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
   std::array<double, 3> travel_min_mm{-160.0, -160.0, 0.0};
   std::array<double, 3> travel_max_mm{160.0, 160.0, 250.0};
-  double c_travel_deg = 360.0;  // C moves in [-c_travel, c_travel]
+  double c_travel_deg = 360.0;          // C moves in [-c_travel, c_travel]
   double speed_mm_per_s = 200.0;
   double c_speed_deg_per_s = 90.0;
   double settle_ms = 20.0;
@@ -296,12 +296,12 @@ struct ProfilerOptions {
   double x_spacing_mm = 0.025;
   double z_min_mm = -10.0;
   double z_max_mm = 10.0;
-  double emitter_height_mm = 140.0;  // fan source above the reference point
+  double emitter_height_mm = 140.0;   // fan source above the reference point
   double triangulation_deg = 25.0;
-  double z_resolution_mm = 0.0005;  // one count of the range output (+-10 mm in 40,000)
-  double noise_um = 1.5;            // speckle: 1 sigma of one point's range
-  double min_signal = 0.02;         // albedo x cos(incidence) under which no line is seen
-  double spike_rate = 2e-4;         // points read off a second reflection (per point)
+  double z_resolution_mm = 0.0005;    // one count of the range output (+-10 mm in 40,000)
+  double noise_um = 1.5;              // speckle: 1 sigma of one point's range
+  double min_signal = 0.02;           // albedo x cos(incidence) under which no line is seen
+  double spike_rate = 2e-4;           // points read off a second reflection (per point)
   double spike_max_mm = 0.3;
   double exposure_us = 100.0;
   double max_rate_hz = 5000.0;

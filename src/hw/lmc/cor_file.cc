@@ -328,29 +328,32 @@ CorFile FromCorrection(const std::function<Eigen::Vector2d(double, double)>& off
   return cor;
 }
 
+Eigen::Vector2d BoardWordsOf(const Eigen::Vector2d& point_mm, const BoardOptions& board) {
+  double a = board.flip_x ? -point_mm.x() : point_mm.x();
+  double b = board.flip_y ? -point_mm.y() : point_mm.y();
+  if (board.swap_xy) std::swap(a, b);
+  const double scale = 65536.0 / board.lens_mm;
+  return {32768.0 + a * scale, 32768.0 + b * scale};
+}
+
+Eigen::Vector2d GalvoMmOf(const Eigen::Vector2d& words, const BoardOptions& board) {
+  const double scale = 65536.0 / board.lens_mm;
+  double a = (words.x() - 32768.0) / scale, b = (words.y() - 32768.0) / scale;
+  if (board.swap_xy) std::swap(a, b);
+  return {board.flip_x ? -a : a, board.flip_y ? -b : b};
+}
+
 CorFile BoardTableFromDrive(const std::function<Eigen::Vector2d(const Eigen::Vector2d&)>& drive_mm,
                             const BoardOptions& board, CorFormat format) {
   CorFile cor;
   cor.format = format;
   cor.scale = 65536.0 / board.lens_mm;
   cor.offsets.resize(kNodes * kNodes);
-  // Words (0..65536, unrounded) and the galvo frame, as the board's options map them
-  // (protocol.cc ToUnits and FromUnits).
-  const auto to_mm = [&](double w1, double w2) {
-    double a = (w1 - 32768.0) / cor.scale, b = (w2 - 32768.0) / cor.scale;
-    if (board.swap_xy) std::swap(a, b);
-    return Eigen::Vector2d(board.flip_x ? -a : a, board.flip_y ? -b : b);
-  };
-  const auto to_words = [&](const Eigen::Vector2d& p) {
-    double a = board.flip_x ? -p.x() : p.x(), b = board.flip_y ? -p.y() : p.y();
-    if (board.swap_xy) std::swap(a, b);
-    return Eigen::Vector2d(32768.0 + a * cor.scale, 32768.0 + b * cor.scale);
-  };
   const auto units = [](double v) { return std::abs(v) < 1e15 ? std::round(v) + 0.0 : v; };
   for (int outer = 0; outer < kNodes; ++outer) {
     for (int inner = 0; inner < kNodes; ++inner) {
       const Eigen::Vector2d w(inner * 1024.0, outer * 1024.0);
-      const Eigen::Vector2d sent = to_words(drive_mm(to_mm(w.x(), w.y())));
+      const Eigen::Vector2d sent = BoardWordsOf(drive_mm(GalvoMmOf(w, board)), board);
       cor.offsets[static_cast<size_t>(outer) * kNodes + inner] = {units(w.x() - sent.x()),
                                                                   units(w.y() - sent.y())};
     }

@@ -31,8 +31,7 @@ uint16_t Distance(const std::array<uint16_t, 2>& a, const std::array<uint16_t, 2
 }  // namespace
 
 Status UsbSelector::Validate() const {
-  if (timeout_ms < 1 || timeout_ms > 10000)
-    return InvalidArgument("timeout_ms must be in 1..10000");
+  if (timeout_ms < 1 || timeout_ms > 10000) return InvalidArgument("timeout_ms must be in 1..10000");
   if (retries < 0 || retries > 10) return InvalidArgument("retries must be in 0..10");
   if (bus < -1 || address < -1) return InvalidArgument("bus and address must be >= 0 (or -1: any)");
   return Status::Ok();
@@ -63,9 +62,8 @@ Status BoardOptions::Validate() const {
       return InvalidArgument("trigger_port must be one output bit (0x0001..0x8000), or 0: none");
     }
     if ((trigger_port & (pointer_port | list_ports)) != 0) {
-      return InvalidArgument(
-          "trigger_port must be a bit of its own, not the pointer's "
-          "(pointer_port) or a marking list's (list_ports)");
+      return InvalidArgument("trigger_port must be a bit of its own, not the pointer's "
+                             "(pointer_port) or a marking list's (list_ports)");
     }
     // The pointer waits at the line's start while the pulse is high: 1 ms at most.
     if (!(trigger_pulse_us >= 10 && trigger_pulse_us <= 1000)) {
@@ -78,11 +76,8 @@ Status BoardOptions::Validate() const {
 // Truncation (floor), not rounding: the reference list the encoder is checked against
 // (docs/hardware.md) truncates; it biases points by at most one unit (1.7 um on a 110 mm lens).
 Result<std::array<uint16_t, 2>> ToUnits(double x_mm, double y_mm, const BoardOptions& o) {
-  double a = o.flip_x ? -x_mm : x_mm;
-  double b = o.flip_y ? -y_mm : y_mm;
-  if (o.swap_xy) std::swap(a, b);
-  const double scale = kUnits / o.lens_mm;
-  const double u = std::floor(32768.0 + a * scale), v = std::floor(32768.0 + b * scale);
+  const Eigen::Vector2d w = BoardWordsOf(Eigen::Vector2d(x_mm, y_mm), o);
+  const double u = std::floor(w.x()), v = std::floor(w.y());
   if (!(u >= 0 && u <= 65535 && v >= 0 && v <= 65535)) {
     char text[160];
     std::snprintf(text, sizeof text,
@@ -94,10 +89,8 @@ Result<std::array<uint16_t, 2>> ToUnits(double x_mm, double y_mm, const BoardOpt
 }
 
 std::array<double, 2> FromUnits(uint16_t u, uint16_t v, const BoardOptions& o) {
-  const double scale = kUnits / o.lens_mm;
-  double a = (u - 32768.0) / scale, b = (v - 32768.0) / scale;
-  if (o.swap_xy) std::swap(a, b);
-  return {o.flip_x ? -a : a, o.flip_y ? -b : b};
+  const Eigen::Vector2d p = GalvoMmOf(Eigen::Vector2d(u, v), o);
+  return {p.x(), p.y()};
 }
 
 std::array<double, 2> ApplyBoardTable(const BoardCorrection& table, double word1, double word2) {
@@ -123,16 +116,9 @@ std::array<double, 2> ApplyBoardTable(const BoardCorrection& table, double word1
 
 Eigen::Vector2d ApplyBoardTableMm(const BoardCorrection& table, const BoardOptions& o,
                                   const Eigen::Vector2d& command_mm) {
-  // ToUnits without the rounding, and back.
-  double a = o.flip_x ? -command_mm.x() : command_mm.x();
-  double b = o.flip_y ? -command_mm.y() : command_mm.y();
-  if (o.swap_xy) std::swap(a, b);
-  const double scale = kUnits / o.lens_mm;
-  const auto w = ApplyBoardTable(table, 32768.0 + a * scale, 32768.0 + b * scale);
-  a = (w[0] - 32768.0) / scale;
-  b = (w[1] - 32768.0) / scale;
-  if (o.swap_xy) std::swap(a, b);
-  return {o.flip_x ? -a : a, o.flip_y ? -b : b};
+  const Eigen::Vector2d w = BoardWordsOf(command_mm, o);
+  const auto sent = ApplyBoardTable(table, w.x(), w.y());
+  return GalvoMmOf(Eigen::Vector2d(sent[0], sent[1]), o);
 }
 
 // One JumpTo or MarkTo to `p` (galvo frame, mm) from `*position`, preceded by the Z DA word
@@ -195,8 +181,8 @@ Result<std::vector<Command>> EncodeList(const GalvoList& list, const BoardOption
   out.push_back(Delay(kLaserOnDelay, list.laser_on_delay_us));
   out.push_back(Delay(kLaserOffDelay, list.laser_off_delay_us));
   // The polygon delay in 10 us units (the reference list's 0x000a for 100 us).
-  out.push_back(
-      {kPolygonDelay, static_cast<uint16_t>(std::round(o.polygon_delay_us / 10.0)), 0, 0, 0, 0});
+  out.push_back({kPolygonDelay, static_cast<uint16_t>(std::round(o.polygon_delay_us / 10.0)), 0,
+                 0, 0, 0});
 
   const auto& entries = list.entries;
   for (size_t i = 0; i < entries.size(); ++i) {
@@ -254,8 +240,8 @@ Result<std::vector<Command>> EncodeTriggeredSweep(const TriggeredSweep& sweep,
     if (settle_units > 0) {
       out.push_back({kDelayTime, static_cast<uint16_t>(settle_units), 0, 0, 0, 0});
     }
-    out.push_back(
-        {kWritePortList, static_cast<uint16_t>(o.pointer_port | o.trigger_port), 0, 0, 0, 0});
+    out.push_back({kWritePortList, static_cast<uint16_t>(o.pointer_port | o.trigger_port), 0, 0,
+                   0, 0});
     out.push_back({kDelayTime, pulse, 0, 0, 0, 0});
     out.push_back({kWritePortList, o.pointer_port, 0, 0, 0, 0});
     // Back and forth along the line for the dwell, the last pass ending where the dwell does
@@ -272,8 +258,8 @@ Result<std::vector<Command>> EncodeTriggeredSweep(const TriggeredSweep& sweep,
       const Eigen::Vector3d& end = k % 2 ? to : from;
       const Eigen::Vector3d& start = k % 2 ? from : to;
       const double step = std::min(left_mm, length);
-      INSITU_RETURN_IF_ERROR(
-          AppendPoint(start + (end - start) * (step / length), false, o, position, z_word, &out));
+      INSITU_RETURN_IF_ERROR(AppendPoint(start + (end - start) * (step / length), false, o,
+                                         position, z_word, &out));
       left_mm -= step;
     }
   }

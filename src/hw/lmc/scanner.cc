@@ -146,7 +146,8 @@ class BoardScanner : public Scanner {
 
   // Streams `commands` and polls until the board is no longer busy; the list's time estimate
   // stands in for progress. Every failure and control.abort leave the board stopped (Abort).
-  Status Run(const std::vector<Command>& commands, const ListControl& control, double estimate_s) {
+  Status Run(const std::vector<Command>& commands, const ListControl& control,
+             double estimate_s) {
     const auto start = std::chrono::steady_clock::now();
     const Status sent = SendList(commands, control);
     if (!sent.ok()) return Stopped(sent);
@@ -162,13 +163,12 @@ class BoardScanner : public Scanner {
       const double elapsed =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       if (elapsed > options_.list_timeout_s) {
-        return Stopped(Status(
-            StatusCode::kDeviceError,
-            "the board was still busy after " + std::to_string(options_.list_timeout_s) + " s"));
+        return Stopped(Status(StatusCode::kDeviceError,
+                              "the board was still busy after " +
+                                  std::to_string(options_.list_timeout_s) + " s"));
       }
       // The board tells no progress: the list's own time estimate stands in, short of 1.
-      if (control.progress && estimate_s > 0)
-        control.progress(std::min(0.99, elapsed / estimate_s));
+      if (control.progress && estimate_s > 0) control.progress(std::min(0.99, elapsed / estimate_s));
       std::this_thread::sleep_for(std::chrono::milliseconds(options_.poll_ms));
     }
   }

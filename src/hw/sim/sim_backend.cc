@@ -78,8 +78,9 @@ class SimScanner : public Scanner {
         return Status(StatusCode::kCancelled,
                       "sweep aborted before line " + std::to_string(i) + ", the pointer is off");
       }
-      INSITU_RETURN_IF_ERROR(world_->StartPointerLine(sweep.lines[i].first, sweep.lines[i].second,
-                                                      sweep.speed_mm_per_s));
+      INSITU_RETURN_IF_ERROR(
+          world_->StartPointerLine(sweep.lines[i].first, sweep.lines[i].second,
+                                   sweep.speed_mm_per_s));
       world_->Advance(sweep.settle_s);
       world_->TriggerPulse();
       world_->Advance(sweep.dwell_s);
@@ -309,8 +310,7 @@ class SimProfiler : public Profiler {
       world_->Advance(1.0);
       return Status(StatusCode::kDeviceError,
                     "line profiler: no profile within 1 s of the trigger (injected: it stopped "
-                    "sending after " +
-                        std::to_string(stop) + " profiles)");
+                    "sending after " + std::to_string(stop) + " profiles)");
     }
     ++grabbed_;
     INSITU_ASSIGN_OR_RETURN(sim::SimWorld::ProfileShot shot, world_->GrabProfile());
