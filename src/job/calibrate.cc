@@ -13,6 +13,8 @@
 #include "insitu/calib/calibration.h"
 #include "insitu/calib/camera_calibration.h"
 #include "insitu/core/log.h"
+#include "insitu/job/scan.h"
+#include "insitu/vision/background.h"
 #include "insitu/vision/canvas.h"
 #include "insitu/vision/stripe.h"
 #include "insitu/vision/targets.h"
@@ -20,6 +22,7 @@
 #include "job/output_path.h"
 #include "job/phase.h"
 #include "job/progress.h"
+#include "job/room_exposure.h"
 #include "job/save_calibration.h"
 
 namespace insitu::job {
@@ -34,6 +37,7 @@ struct CalibrateSpec {
   calib::BoardGeometry board;
   int views = 15;
   double board_exposure_ms = 300.0;
+  bool board_auto_exposure = true;  // the first view sets it (job/room_exposure.h)
   double board_stage_z_mm = -20.0;
   calib::IntrinsicsOptions intrinsics;
   double spot_exposure_ms = 0.5;
@@ -47,6 +51,7 @@ struct CalibrateSpec {
   double x_start_mm = -30.0, x_end_mm = 30.0, x_step_mm = 5.0;
   double y_start_mm = -50.0, y_end_mm = 50.0;
   double height_exposure_ms = 150.0;
+  int height_background_frames = 2;  // pointer-off frames per height, taken off each frame
   double speed_mm_per_s = 5000.0;
   std::string output_path;
 };
@@ -71,6 +76,7 @@ Status ReadSpec(const LoadedJob& job, CalibrateSpec* s, hw::MachineConfig* machi
   ConfigReader& in = r.Section("intrinsics");
   in.Read("views", &s->views);
   in.Read("exposure_ms", &s->board_exposure_ms);
+  in.Read("auto_exposure", &s->board_auto_exposure);
   in.Read("stage_z_mm", &s->board_stage_z_mm);
   in.Read("min_views", &s->intrinsics.min_views);
   in.Read("min_coverage", &s->intrinsics.min_coverage);
@@ -102,12 +108,16 @@ Status ReadSpec(const LoadedJob& job, CalibrateSpec* s, hw::MachineConfig* machi
     h.Read("y_start_mm", &s->y_start_mm);
     h.Read("y_end_mm", &s->y_end_mm);
     h.Read("exposure_ms", &s->height_exposure_ms);
+    h.Read("background_frames", &s->height_background_frames);
     h.Read("speed_mm_per_s", &s->speed_mm_per_s);
     if (h.ok() && !(s->z_step_mm > 0)) h.Fail("z_step_mm", "must be > 0");
     if (h.ok() && !(s->x_step_mm > 0)) h.Fail("x_step_mm", "must be > 0");
     if (h.ok() && !(s->z_end_mm > s->z_start_mm)) h.Fail("z_end_mm", "must exceed z_start_mm");
     if (h.ok() && !(s->x_end_mm > s->x_start_mm)) h.Fail("x_end_mm", "must exceed x_start_mm");
     if (h.ok() && !(s->height_exposure_ms > 0)) h.Fail("exposure_ms", "must be > 0");
+    if (h.ok() && (s->height_background_frames < 0 || s->height_background_frames > 64)) {
+      h.Fail("background_frames", "must be in [0, 64]");
+    }
     if (h.ok() && !(s->speed_mm_per_s > 0)) h.Fail("speed_mm_per_s", "must be > 0");
   }
   ConfigReader& out = r.Section("output");
@@ -182,10 +192,24 @@ Result<calib::CameraIntrinsics> MeasureIntrinsics(CalibrateRun& run,
   std::vector<std::vector<Eigen::Vector2d>> corners;
   PhaseProgress progress(run.options, "intrinsics", "board views", spec.views);
   const vision::ChessboardOptions board{spec.board.inner_cols, spec.board.inner_rows};
+  double exposure_ms = spec.board_exposure_ms, lo_ms = 1e300, hi_ms = 0.0;
+  int shots = 0;
   for (int k = 0; k < spec.views; ++k) {
     if (Cancelled(run.options)) return Status(StatusCode::kCancelled, "cancelled");
     const Status placed = machine.person->PlaceBoard(k, spec.views);
     if (!placed.ok()) return PhaseFailure(placed);
+    if (spec.board_auto_exposure) {
+      // Each pose turns the board to the room's light otherwise: each view is exposed for
+      // itself, from the last one's exposure.
+      auto exposed = ExposeForBoard(*machine.camera, exposure_ms, board);
+      if (!exposed.ok()) return PhaseFailure(exposed.status(), "intrinsics: ");
+      shots += exposed->shots;
+      if (exposed->white_fraction > 0) {
+        exposure_ms = exposed->exposure_ms;
+        lo_ms = std::min(lo_ms, exposure_ms);
+        hi_ms = std::max(hi_ms, exposure_ms);
+      }
+    }
     auto frame = machine.camera->Grab();
     if (!frame.ok()) return PhaseFailure(frame.status());
     auto found = vision::FindChessboard(vision::ViewOf(*frame), board);
@@ -203,6 +227,11 @@ Result<calib::CameraIntrinsics> MeasureIntrinsics(CalibrateRun& run,
   }
   const Status removed = machine.person->RemoveBoard();
   if (!removed.ok()) return PhaseFailure(removed);
+  if (hi_ms > 0) {
+    report.metrics["intrinsics_exposure_ms_min"] = lo_ms;
+    report.metrics["intrinsics_exposure_ms_max"] = hi_ms;
+    report.metrics["intrinsics_exposure_shots"] = shots;
+  }
   calib::IntrinsicsSummary intr = calib::CalibrateIntrinsics(
       corners, spec.board, info.sensor_width_px, info.sensor_height_px, spec.intrinsics);
   report.metrics["intrinsics_views"] = intr.views;
@@ -315,9 +344,15 @@ Result<calib::HeightLookup> CalibrateHeights(CalibrateRun& run) {
   PhaseProgress hp(run.options, "height calibration", "frames",
                    static_cast<double>(zs.size() * xs.size()));
   int done = 0;
+  vision::Image background, subtracted;  // the room's light on the plate at this height
   for (double z : zs) {
     const Status moved = machine.stage->MoveTo(z);
     if (!moved.ok()) return PhaseFailure(moved, "height calibration: ");
+    if (spec.height_background_frames > 0) {
+      auto mean = GrabBackground(machine, spec.height_background_frames, run.options.cancel);
+      if (!mean.ok()) return PhaseFailure(mean.status(), "height calibration: ");
+      background = std::move(*mean);
+    }
     for (double x : xs) {
       if (Cancelled(run.options)) return Status(StatusCode::kCancelled, "cancelled");
       const Status on = machine.scanner->StartPointerLine(
@@ -326,7 +361,13 @@ Result<calib::HeightLookup> CalibrateHeights(CalibrateRun& run) {
       machine.clock->SleepFor(0.005);
       auto frame = machine.camera->Grab();
       if (!frame.ok()) return PhaseFailure(frame.status());
-      const Status ex = extractor.Extract(vision::ViewOf(*frame), &stripe);
+      vision::ImageView view = vision::ViewOf(*frame);
+      if (!background.bytes.empty()) {
+        const Status sub = vision::SubtractBackground(view, background.view(), &subtracted);
+        if (!sub.ok()) return PhaseFailure(sub, "height calibration: ");
+        view = subtracted.view();
+      }
+      const Status ex = extractor.Extract(view, &stripe);
       if (!ex.ok()) return PhaseFailure(ex);
       calib::HeightObservation o{x, z, {}};
       const double b = frame->binning;

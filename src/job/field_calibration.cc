@@ -49,6 +49,7 @@
 #include "job/coaxial_field.h"
 #include "job/output_path.h"
 #include "job/progress.h"
+#include "job/room_exposure.h"
 #include "job/save_calibration.h"
 
 namespace insitu::job {
@@ -82,6 +83,7 @@ struct FieldSpec {
   calib::BoardGeometry board{9, 6, 8.0};
   double board_thickness_mm = 2.0;
   double board_exposure_ms = 300.0;
+  bool board_auto_exposure = true;  // set on the board as it lies (job/room_exposure.h)
   double target_exposure_ms = 300.0;
   bool pointer = true;
   double pointer_exposure_ms = 0.5;
@@ -162,6 +164,7 @@ Status ReadSpec(const LoadedJob& job, FieldSpec* s, hw::MachineConfig* machine) 
   b.Read("square_mm", &s->board.square_mm);
   b.Read("thickness_mm", &s->board_thickness_mm);
   b.Read("exposure_ms", &s->board_exposure_ms);
+  b.Read("auto_exposure", &s->board_auto_exposure);
   if (b.ok() && (s->board.inner_cols < 3 || s->board.inner_rows < 3)) {
     b.Fail("inner_cols", "must be >= 3 (and inner_rows)");
   }
@@ -608,6 +611,13 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
     return finish(false,
                   "no plate plane: the board could not be laid on the plate: " + laid.ToString(),
                   laid.code());
+  }
+  if (spec.board_auto_exposure) {
+    auto exposed = ExposeForBoard(*machine.camera, spec.board_exposure_ms,
+                                  {spec.board.inner_cols, spec.board.inner_rows});
+    if (!exposed.ok()) return fail("plate: ", exposed.status());
+    report.metrics["board_exposure_ms"] = exposed->exposure_ms;
+    if (!exposed->note.empty()) report.warnings.push_back("plate: " + exposed->note);
   }
   auto board_frame = machine.camera->Grab();
   if (!board_frame.ok()) return fail("plate: ", board_frame.status());

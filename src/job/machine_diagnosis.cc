@@ -18,6 +18,8 @@
 #include "insitu/geometry/triangulation.h"
 #include "insitu/job/scan.h"
 #include "insitu/vision/canvas.h"
+#include "insitu/vision/image.h"
+#include "insitu/vision/targets.h"
 #include "job/output_path.h"
 #include "job/progress.h"
 #include "job/scan_job.h"
@@ -40,6 +42,17 @@ struct DiagnoseMachineSpec {
   // Each pass focuses on the gauge where the stage took it (focus z = scan focus + stage z), as
   // a 3D head works; then the focus shifter's scale shows between the passes.
   bool refocus = true;
+  // The pointer parked on the plate beside the gauge at each pass, at every (x, y) of these
+  // (galvo mm, focused on the plate): where the head puts the beam against where the camera
+  // sees it, along the lines too, which the gauge's heights cannot show (a Y mirror's zero).
+  // Either list empty: no spots.
+  std::vector<double> spot_x_mm{-30.0, 30.0};
+  std::vector<double> spot_y_mm{-40.0, -20.0, 0.0, 20.0, 40.0};
+  double spot_exposure_ms = 0.5;
+  // The gauge stands where it stood for the baseline (a fixture on the stage): its ends along
+  // the lines are then a mark in the world, and tell the camera's shift along the lines from
+  // the mirrors'. false: a gauge placed anew; its ends are not used.
+  bool gauge_fixed = true;
 };
 
 Status ReadSpec(const LoadedJob& job, DiagnoseMachineSpec* s, hw::MachineConfig* machine) {
@@ -57,6 +70,11 @@ Status ReadSpec(const LoadedJob& job, DiagnoseMachineSpec* s, hw::MachineConfig*
       if (!baseline.empty()) s->baseline_path = ResolvePath(job.folder, baseline);
       d.Read("record_baseline", &s->record_baseline);
       d.Read("refocus", &s->refocus);
+      d.Read("spot_x_mm", &s->spot_x_mm);
+      d.Read("spot_y_mm", &s->spot_y_mm);
+      d.Read("spot_exposure_ms", &s->spot_exposure_ms);
+      d.Read("gauge_fixed", &s->gauge_fixed);
+      if (d.ok() && !(s->spot_exposure_ms > 0)) d.Fail("spot_exposure_ms", "must be > 0");
       if (d.ok() && s->stage_z_mm.empty()) d.Fail("stage_z_mm", "must list at least one height");
       if (d.ok() && !(s->bin_mm > 0)) d.Fail("bin_mm", "must be > 0");
       if (d.ok()) d.FailFromValidate(s->selection.Validate());
@@ -78,12 +96,25 @@ Status ReadSpec(const LoadedJob& job, DiagnoseMachineSpec* s, hw::MachineConfig*
   return Status::Ok();
 }
 
-// One stripe centre, averaged over a bin along its line.
+// What an observation measures (its residual, mm):
+//   kHeight: a stripe centre averaged over a bin along its line on a step's top: its height
+//            less the step's;
+//   kEnd:    where a line leaves a step's top at one of the gauge's ends (`side` -1: y low,
+//            +1: y high): its y less the end's;
+//   kSpotX, kSpotY: the pointer parked at `command` on the plate (`line` numbers the spot in
+//            its pass): where the camera sees it less where the head puts it, along x or y.
+enum Kind { kHeight, kEnd, kSpotX, kSpotY };
+
 struct Observation {
   Vector2d pixel;  // full sensor
   int pass = 0, line = 0, step = 0, bin = 0;
   double baseline_mm = 0.0;  // its residual when the machine was as calibrated
+  Kind kind = kHeight;
+  int side = 0;
+  Vector2d command = Vector2d::Zero();
 };
+
+bool OnLine(const Observation& o) { return o.kind == kHeight || o.kind == kEnd; }
 
 // An observation's place, as the baseline file names it.
 std::string KeyOf(double stage_z_mm, double line_x_mm, int step, int bin) {
@@ -94,6 +125,7 @@ std::string KeyOf(double stage_z_mm, double line_x_mm, int step, int bin) {
 
 struct Pass {
   double stage_z_mm = 0.0;
+  double focus_z_mm = 0.0;                           // the pass's commanded focus
   std::vector<std::pair<Vector3d, Vector3d>> lines;  // commanded ends
 };
 
@@ -165,7 +197,11 @@ class CellModel : public fit::GroupModel {
   }
 
   int units() const override { return static_cast<int>(obs_.size()); }
-  int fold_key(int unit) const override { return obs_[unit].pass * 100000 + obs_[unit].line; }
+  // A line's heights and ends are held out together; each spot on its own.
+  int fold_key(int unit) const override {
+    const Observation& o = obs_[unit];
+    return o.pass * 100000 + (OnLine(o) ? o.line : 50000 + o.line);
+  }
 
   bool Residuals(const std::vector<double>& theta, const std::vector<int>& use,
                  std::vector<double>* residuals) const override {
@@ -173,11 +209,31 @@ class CellModel : public fit::GroupModel {
     std::vector<Vector3d> points;
     if (!Points(theta, use, &points)) return false;
     const double stage_scale = two_heights_ ? theta[Begin(kStageScale)] * 1e-3 : 0.0;
+    const double scale = 1.0 + theta[Begin(kHeadScale)] * 1e-3;
+    const Vector2d shift(theta[Begin(kGalvoOffset)], theta[Begin(kGalvoOffset) + 1]);
+    const double focus = has_focus_ ? theta[Begin(kFocusScale)] * 1e-3 : 0.0;
     for (size_t k = 0; k < use.size(); ++k) {
       const Observation& o = obs_[use[k]];
       const double z_stage = passes_[o.pass].stage_z_mm * (1.0 + stage_scale);
-      (*residuals)[k] =
-          points[k].z() - (gauge_.base_z_mm + gauge_.heights_mm[o.step] + z_stage) - o.baseline_mm;
+      double r = 0.0;
+      switch (o.kind) {
+        case kHeight:
+          r = points[k].z() - (gauge_.base_z_mm + gauge_.heights_mm[o.step] + z_stage);
+          break;
+        case kEnd:
+          r = points[k].y() - (gauge_.center_y_mm + 0.5 * o.side * gauge_.length_mm);
+          break;
+        case kSpotX:
+        case kSpotY: {
+          // The spot is focused on the plate: it lands where the field puts its command.
+          const double z = passes_[o.pass].focus_z_mm;
+          const Vector2d landed = (scale + focus * z) * o.command + shift;
+          const int axis = o.kind == kSpotX ? 0 : 1;
+          r = points[k][axis] - landed[axis];
+          break;
+        }
+      }
+      (*residuals)[k] = r - o.baseline_mm;
     }
     return true;
   }
@@ -214,10 +270,19 @@ class CellModel : public fit::GroupModel {
     // Chief rays lean by x / L from a pupil L above the field; from L + dL by x dL / L^2 less.
     const double height = cal_.head.measured ? cal_.head.model.built.exit_pupil_height_mm
                                              : cal_.galvo.pivot_height_mm;
+    const double stage_scale = two_heights_ ? theta[Begin(kStageScale)] * 1e-3 : 0.0;
     std::map<std::pair<int, int>, Eigen::Vector4d> planes;
     out->resize(use.size());
     for (size_t k = 0; k < use.size(); ++k) {
       const Observation& o = obs_[use[k]];
+      if (!OnLine(o)) {
+        // A spot on the plate's top, which rides on the stage (galvo z = stage z).
+        const Vector3d dir = to_galvo * Vector3d(normalized[k].x(), normalized[k].y(), 1.0);
+        if (std::abs(dir.z()) < 1e-12) return false;
+        const double z = passes_[o.pass].stage_z_mm * (1.0 + stage_scale);
+        (*out)[k] = origin + (z - origin.z()) / dir.z() * dir;
+        continue;
+      }
       const auto key = std::make_pair(o.pass, o.line);
       auto it = planes.find(key);
       if (it == planes.end()) {
@@ -379,8 +444,17 @@ struct Structure {
   std::string where;  // the lines and stretch holding the largest residuals
 };
 
-Structure LineStructure(const std::vector<Observation>& obs, const std::vector<double>& r,
-                        const std::vector<Pass>& passes, double bin_mm) {
+Structure LineStructure(const std::vector<Observation>& observed,
+                        const std::vector<double>& residuals, const std::vector<Pass>& passes,
+                        double bin_mm) {
+  // The heights' bins alone: the gauge's ends and the spots are not bins along a line.
+  std::vector<Observation> obs;
+  std::vector<double> r;
+  for (size_t k = 0; k < observed.size() && k < residuals.size(); ++k) {
+    if (observed[k].kind != kHeight) continue;
+    obs.push_back(observed[k]);
+    r.push_back(residuals[k]);
+  }
   Structure s;
   std::vector<std::pair<int, int>> pairs;
   for (size_t k = 0; k + 1 < obs.size() && k + 1 < r.size(); ++k) {
@@ -434,6 +508,99 @@ Structure LineStructure(const std::vector<Observation>& obs, const std::vector<d
   s.where = b;
   return s;
 }
+// Where each line leaves each step's top at the gauge's two ends: the outermost point on the
+// top whose next point inward follows within 2.5 of the line's median spacing (a stray centre
+// beyond the end is not the end). Lines that do not reach within 2 mm of both ends give none.
+void AddGaugeEnds(const geometry::Cloud& cloud, const inspect::StepGaugeSpec& gauge,
+                  double stage_z_mm, int pass, std::vector<Observation>* obs) {
+  std::map<std::pair<int, int>, std::vector<std::pair<double, Vector2d>>> tops;  // y, pixel
+  const double half_width = 0.5 * gauge.step_width_mm * gauge.heights_mm.size();
+  for (const geometry::CloudPoint& cp : cloud) {
+    const Vector3d q = cp.point_in_galvo.cast<double>() - Vector3d(0, 0, stage_z_mm);
+    const double x = q.x() - gauge.center_x_mm + half_width;
+    const int step = static_cast<int>(std::floor(x / gauge.step_width_mm));
+    if (step < 0 || step >= static_cast<int>(gauge.heights_mm.size())) continue;
+    const double in = x - step * gauge.step_width_mm;
+    if (in < gauge.edge_margin_mm || in > gauge.step_width_mm - gauge.edge_margin_mm) continue;
+    if (std::abs(q.z() - gauge.base_z_mm - gauge.heights_mm[step]) > 1.0) continue;
+    tops[{cp.line, step}].push_back({q.y(), Vector2d(cp.pixel_u, cp.pixel_v)});
+  }
+  for (auto& [key, top] : tops) {
+    if (top.size() < 10) continue;
+    std::sort(top.begin(), top.end(),
+              [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::vector<double> gaps;
+    for (size_t i = 1; i < top.size(); ++i) gaps.push_back(top[i].first - top[i - 1].first);
+    std::nth_element(gaps.begin(), gaps.begin() + gaps.size() / 2, gaps.end());
+    const double joined = 2.5 * gaps[gaps.size() / 2];
+    const int n = static_cast<int>(top.size());
+    int lo = 0, hi = n - 1;
+    while (lo + 1 < n && top[lo + 1].first - top[lo].first > joined) ++lo;
+    while (hi > 0 && top[hi].first - top[hi - 1].first > joined) --hi;
+    const double y_lo = gauge.center_y_mm - 0.5 * gauge.length_mm;
+    const double y_hi = gauge.center_y_mm + 0.5 * gauge.length_mm;
+    if (!(lo < hi) || top[lo].first > y_lo + 2.0 || top[hi].first < y_hi - 2.0) continue;
+    for (const auto& [index, side] : {std::pair{lo, -1}, std::pair{hi, +1}}) {
+      Observation o;
+      o.pixel = top[index].second;
+      o.pass = pass;
+      o.line = key.first;
+      o.step = key.second;
+      o.kind = kEnd;
+      o.side = side;
+      obs->push_back(o);
+    }
+  }
+}
+
+// The pointer parked at every spot of the spec on the plate (focused on it) at this pass's
+// stage height, found against a frame with the pointer off; a spot not found is warned about
+// and left out. The exposure is left at the spots'.
+Status MeasureSpots(hw::Machine& machine, const DiagnoseMachineSpec& spec, const Pass& pass,
+                    int pass_index, const RunOptions& options, std::vector<Observation>* obs,
+                    std::vector<std::string>* warnings) {
+  INSITU_RETURN_IF_ERROR(machine.camera->SetExposure(spec.spot_exposure_ms * 1e3));
+  INSITU_RETURN_IF_ERROR(machine.scanner->StopPointer());
+  auto dark = machine.camera->Grab();
+  if (!dark.ok()) return dark.status().Prefixed("spots: camera");
+  PhaseProgress progress(options, "spots at stage " + std::to_string(pass.stage_z_mm) + " mm",
+                         "spots", static_cast<double>(spec.spot_x_mm.size() * spec.spot_y_mm.size()));
+  int index = 0;
+  for (double x : spec.spot_x_mm) {
+    for (double y : spec.spot_y_mm) {
+      if (options.cancel && options.cancel->load()) {
+        (void)machine.scanner->StopPointer();
+        return Status(StatusCode::kCancelled, "cancelled");
+      }
+      const Vector3d p(x, y, pass.focus_z_mm);
+      Status on = machine.scanner->StartPointerLine(p, p, 1.0);
+      if (!on.ok()) return on.Prefixed("spots");
+      machine.clock->SleepFor(0.005);
+      auto lit = machine.camera->Grab();
+      (void)machine.scanner->StopPointer();
+      if (!lit.ok()) return lit.status().Prefixed("spots: camera");
+      progress.Update(++index);
+      auto spot = vision::FindSpot(vision::ViewOf(*lit), vision::ViewOf(*dark), {});
+      if (!spot.ok()) {
+        warnings->push_back("spot at (" + std::to_string(x) + ", " + std::to_string(y) +
+                            ") mm, stage " + std::to_string(pass.stage_z_mm) +
+                            " mm: " + spot.status().message());
+        continue;
+      }
+      for (Kind kind : {kSpotX, kSpotY}) {
+        Observation o;
+        o.pixel = spot->center;
+        o.pass = pass_index;
+        o.line = index - 1;
+        o.kind = kind;
+        o.command = Vector2d(x, y);
+        obs->push_back(o);
+      }
+    }
+  }
+  return Status::Ok();
+}
+
 }  // namespace
 
 Status CheckDiagnoseMachineJob(const LoadedJob& job) {
@@ -487,6 +654,7 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
     ReportScanLight(scanned->stats, &report);  // each pass's; the last one's metrics stay
     Pass pass;
     pass.stage_z_mm = z;
+    pass.focus_z_mm = pass_scan.focus_z_mm;
     for (int i = 0; i < spec.scan.scan.line_count(); ++i) {
       const double x = spec.scan.scan.line_x(i);
       pass.lines.push_back({Vector3d(x, pass_scan.y_start_mm, pass_scan.focus_z_mm),
@@ -512,8 +680,16 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
       obs.push_back({b.first / b.second, static_cast<int>(p), std::get<0>(key), std::get<1>(key),
                      std::get<2>(key), 0.0});
     }
-    log->info("diagnose_machine: stage {} mm, {} points in {} bins", z, scanned->cloud.size(),
-              bins.size());
+    const size_t heights = obs.size();
+    if (spec.gauge_fixed) AddGaugeEnds(scanned->cloud, gauge, z, static_cast<int>(p), &obs);
+    const size_t ends = obs.size() - heights;
+    if (!spec.spot_x_mm.empty() && !spec.spot_y_mm.empty()) {
+      const Status spotted = MeasureSpots(machine, spec, passes.back(), static_cast<int>(p),
+                                          options, &obs, &report.warnings);
+      if (!spotted.ok()) return finish(false, spotted.ToString(), spotted.code());
+    }
+    log->info("diagnose_machine: stage {} mm, {} points in {} bins, {} line ends, {} spots", z,
+              scanned->cloud.size(), bins.size(), ends, (obs.size() - heights - ends) / 2);
   }
   (void)machine.stage->MoveTo(0.0);
   if (obs.size() < 50) {
@@ -524,8 +700,19 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
   }
   const bool two_heights = spec.stage_z_mm.size() >= 2;
   const bool two_focus = two_heights && spec.refocus;
+  // A line's end: its step and bin -100000 (y low) or +100000 (y high); a spot: its command's
+  // x for the line, step -1 (x) or -2 (y), and its y in um for the bin.
   const auto key_of = [&](const Observation& o) {
-    return KeyOf(passes[o.pass].stage_z_mm, spec.scan.scan.line_x(o.line), o.step, o.bin);
+    const double z = passes[o.pass].stage_z_mm;
+    switch (o.kind) {
+      case kHeight: return KeyOf(z, spec.scan.scan.line_x(o.line), o.step, o.bin);
+      case kEnd: return KeyOf(z, spec.scan.scan.line_x(o.line), o.step, 100000 * o.side);
+      case kSpotX:
+      case kSpotY:
+        return KeyOf(z, o.command.x(), o.kind == kSpotX ? -1 : -2,
+                     static_cast<int>(std::lround(o.command.y() * 1e3)));
+    }
+    return std::string();
   };
   if (spec.record_baseline) {
     // The machine as calibrated: its residuals, kept for every later diagnosis.
@@ -537,7 +724,9 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
       return finish(false, "baseline: the scan's rays miss their light planes");
     }
     std::string text =
-        "# insitu diagnose_machine baseline: height residuals of the machine as calibrated\n"
+        "# insitu diagnose_machine baseline: residuals of the machine as calibrated\n"
+        "# heights (step >= 0, bin along y), the gauge's ends (bin -100000: y low, 100000: y "
+        "high) and pointer spots (step -1: x, -2: y; line_x: the spot's x, bin: its y in um)\n"
         "# calibration: " +
         spec.scan.machine.calibration_path + "\n" + RefocusLine(spec.refocus) +
         "\nstage_z_mm,line_x_mm,step,bin,residual_mm\n";
@@ -605,11 +794,22 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
                         "': record the baseline again (--set diagnosis.record_baseline=true)");
     }
     std::vector<Observation> kept;
+    std::map<Kind, std::pair<int, int>> with_baseline;  // kind: (measured, with a baseline)
     for (Observation o : obs) {
       auto it = base.find(key_of(o));
+      ++with_baseline[o.kind].first;
       if (it == base.end()) continue;
+      ++with_baseline[o.kind].second;
       o.baseline_mm = it->second;
       kept.push_back(o);
+    }
+    for (const auto& [kind, counts] : with_baseline) {
+      if (kind == kHeight || counts.second > 0) continue;
+      report.warnings.push_back(
+          std::string(kind == kEnd ? "the gauge's ends" : "the pointer spots") +
+          " have no baseline in " + spec.baseline_path +
+          " (recorded without them): the camera's and the mirrors' shifts along the lines cannot "
+          "be told; record the baseline again (--set diagnosis.record_baseline=true)");
     }
     report.metrics["observations_without_baseline"] = static_cast<double>(obs.size() - kept.size());
     if (kept.size() < obs.size() / 2) {
@@ -657,6 +857,10 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
 
   auto& m = report.metrics;
   m["observations"] = static_cast<double>(obs.size());
+  m["observations_gauge_ends"] = static_cast<double>(
+      std::count_if(obs.begin(), obs.end(), [](const Observation& o) { return o.kind == kEnd; }));
+  m["observations_spots"] = static_cast<double>(
+      std::count_if(obs.begin(), obs.end(), [](const Observation& o) { return o.kind == kSpotX; }));
   m["passes"] = static_cast<double>(passes.size());
   m["nominal_rms_mm"] = d->nominal_rms;
   m["nominal_cv_rms_mm"] = d->nominal_cv_rms;
@@ -704,8 +908,14 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
   report.extra_json["notes"] = nlohmann::ordered_json(d->notes).dump();
 
   // The plot: residual heights over the gauge, as calibrated and with the causes.
-  std::vector<int> all(obs.size());
-  for (size_t k = 0; k < obs.size(); ++k) all[k] = static_cast<int>(k);
+  std::vector<int> all;  // the heights' bins
+  std::vector<double> as_calibrated, after_causes;
+  for (size_t k = 0; k < obs.size(); ++k) {
+    if (obs[k].kind != kHeight) continue;
+    all.push_back(static_cast<int>(k));
+    if (k < d->residual_nominal.size()) as_calibrated.push_back(d->residual_nominal[k]);
+    if (k < d->residual_extended.size()) after_causes.push_back(d->residual_extended[k]);
+  }
   std::vector<Vector3d> points;
   if (model.Points(std::vector<double>(model.parameters(), 0.0), all, &points)) {
     std::string after = partial ? "best partial fit, no cause" : "with the causes";
@@ -716,7 +926,7 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
       after += ")";
     }
     const std::string png = (std::filesystem::path(options.out_dir) / "residuals.png").string();
-    if (SaveResidualMap(points, d->residual_nominal, d->residual_extended, after, png).ok()) {
+    if (SaveResidualMap(points, as_calibrated, after_causes, after, png).ok()) {
       report.artifacts["residuals"] = "residuals.png";
     }
   }

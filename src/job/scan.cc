@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "insitu/geometry/triangulation.h"
+#include "insitu/vision/background.h"
 
 namespace insitu::job {
 
@@ -49,6 +50,10 @@ Status ScanOptions::Validate() const {
   if (!(std::isfinite(height_range_mm[0]) && std::isfinite(height_range_mm[1]) &&
         height_range_mm[1] > height_range_mm[0])) {
     return InvalidArgument("height_range_mm must be [low, high] with high > low");
+  }
+  if (background_frames < 0 || background_frames > 64) {
+    return InvalidArgument("background_frames must be in [0, 64], got " +
+                           std::to_string(background_frames));
   }
   if (!(min_stripe_fraction >= 0 && min_stripe_fraction <= 1)) {
     return InvalidArgument("min_stripe_fraction must be in [0, 1]");
@@ -97,6 +102,8 @@ struct FrameProcessor::Impl {
   vision::StripeResult stripe;
   std::vector<Eigen::Vector2d> pixels;
   std::vector<int> index;
+  vision::Image background;  // empty: none
+  vision::Image subtracted;  // the frame less the background, reused
 };
 
 Result<std::unique_ptr<FrameProcessor>> FrameProcessor::Create(
@@ -121,6 +128,10 @@ Result<std::unique_ptr<FrameProcessor>> FrameProcessor::Create(
 
 FrameProcessor::~FrameProcessor() = default;
 
+void FrameProcessor::SetBackground(vision::Image background) {
+  impl_->background = std::move(background);
+}
+
 Status FrameProcessor::Process(const Frame& frame, int i, ScanOutput* out) {
   Impl& m = *impl_;
   const ScanOptions& options = m.options;
@@ -128,7 +139,12 @@ Status FrameProcessor::Process(const Frame& frame, int i, ScanOutput* out) {
   const double x = options.line_x(i);
   const Eigen::Vector3d from(x, options.y_start_mm, options.focus_z_mm);
   const Eigen::Vector3d to(x, options.y_end_mm, options.focus_z_mm);
-  const vision::ImageView view = vision::ViewOf(frame);
+  vision::ImageView view = vision::ViewOf(frame);
+  if (!m.background.bytes.empty()) {
+    const Status subtracted = vision::SubtractBackground(view, m.background.view(), &m.subtracted);
+    if (!subtracted.ok()) return subtracted.Prefixed("line " + std::to_string(i));
+    view = m.subtracted.view();
+  }
   if (!m.extractor || m.extractor_bit_depth != frame.bit_depth) {
     // The scan's gray levels are 8-bit ones: the same light on a 12-bit camera.
     m.extractor = std::make_unique<vision::StripeExtractor>(
@@ -289,6 +305,24 @@ std::pair<int, int> StripeBand(const ScanOptions& o, const vision::StripeOptions
   return {first, last - first};
 }
 
+// The pointer sweeps its line back and forth: every point of it is passed twice a period,
+// 2 length / speed, so an exposure of whole periods gives the whole line the same dose wherever
+// the sweep was when the exposure began. Any other exposure leaves a stretch of the line swept
+// once more than the rest: a step in the stripe's brightness that falls anywhere along it,
+// and moves the fade where a line leaves a surface (a gauge's end) by a fraction of a pixel.
+// Returns the speed nearest `speed` at which `exposure_ms` holds a whole number of periods (at
+// least one), or `speed` itself when that would be more than 4 times faster (an exposure far
+// shorter than a sweep: the dose cannot be even).
+double EvenSweepSpeed(double speed, double length_mm, double exposure_ms) {
+  if (!(length_mm > 0) || !(exposure_ms > 0) || !(speed > 0)) return speed;
+  const double period_ms = 2e3 * length_mm / speed;
+  const double periods = std::max(1.0, std::round(exposure_ms / period_ms));
+  const double even = 2e3 * length_mm * periods / exposure_ms;
+  return even <= 4.0 * speed ? even : speed;
+}
+
+double LineLength(const ScanOptions& o) { return std::abs(o.y_end_mm - o.y_start_mm); }
+
 // Stops the pointer when it goes out of scope: a scan's way out, whichever it takes.
 struct PointerOff {
   hw::Scanner* scanner;
@@ -341,7 +375,8 @@ Result<double> AutoExpose(hw::Machine& machine, const ScanOptions& options,
       const double x = options.line_x(i);
       INSITU_RETURN_IF_ERROR(machine.scanner->StartPointerLine(
           Eigen::Vector3d(x, options.y_start_mm, options.focus_z_mm),
-          Eigen::Vector3d(x, options.y_end_mm, options.focus_z_mm), options.speed_mm_per_s));
+          Eigen::Vector3d(x, options.y_end_mm, options.focus_z_mm),
+          EvenSweepSpeed(options.speed_mm_per_s, LineLength(options), exposure_ms)));
       machine.clock->SleepFor(options.settle_ms * 1e-3);
       auto frame = machine.camera->Grab();
       if (!frame.ok()) return frame.status().Prefixed("auto exposure: camera");
@@ -405,6 +440,22 @@ Result<double> AutoExpose(hw::Machine& machine, const ScanOptions& options,
   return exposure_ms;
 }
 
+// The room's light as the scan's frames will see it (the exposure, gain and region already
+// set), handed to `processor`.
+Status TakeBackground(hw::Machine& machine, int frames, const std::atomic<bool>* cancel,
+                      FrameProcessor* processor, ScanStats* stats) {
+  INSITU_ASSIGN_OR_RETURN(vision::Image mean, GrabBackground(machine, frames, cancel));
+  double level = 0.0;
+  const vision::ImageView mv = mean.view();
+  for (int v = 0; v < mv.height; ++v) {
+    for (int u = 0; u < mv.width; ++u) level += mv.is_8bit() ? mv.row8(v)[u] : mv.row16(v)[u];
+  }
+  stats->background_frames = frames;
+  stats->background_level = level / (static_cast<double>(mv.width) * mv.height);
+  processor->SetBackground(std::move(mean));
+  return Status::Ok();
+}
+
 // Columns (rows, for a stripe across rows) the lines span in the binned image at the focus
 // height: what a surface under the whole of every line would light.
 int64_t ExpectedColumns(const ScanOptions& o, const vision::StripeOptions& stripe,
@@ -428,6 +479,21 @@ int64_t ExpectedColumns(const ScanOptions& o, const vision::StripeOptions& strip
 }
 
 }  // namespace
+
+Result<vision::Image> GrabBackground(hw::Machine& machine, int frames,
+                                     const std::atomic<bool>* cancel) {
+  INSITU_RETURN_IF_ERROR(machine.scanner->StopPointer().Prefixed("background"));
+  std::vector<Frame> grabbed;
+  for (int k = 0; k < frames; ++k) {
+    if (cancel && cancel->load()) return Status(StatusCode::kCancelled, "cancelled");
+    auto frame = machine.camera->Grab();
+    if (!frame.ok()) return frame.status().Prefixed("background: camera");
+    grabbed.push_back(std::move(*frame));
+  }
+  std::vector<vision::ImageView> views;
+  for (const Frame& f : grabbed) views.push_back(vision::ViewOf(f));
+  return vision::AverageFrames(views);
+}
 
 Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
                            const vision::StripeOptions& stripe_options,
@@ -483,6 +549,13 @@ Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
                                        &out.stats.auto_exposure_shots,
                                        &out.stats.exposure_note));
   }
+  if (options.background_frames > 0) {
+    INSITU_RETURN_IF_ERROR(TakeBackground(machine, options.background_frames, cancel,
+                                          processor.get(), &out.stats));
+  }
+  const double sweep_speed =
+      EvenSweepSpeed(options.speed_mm_per_s, LineLength(options), out.stats.exposure_ms);
+  out.stats.pointer_speed_mm_per_s = sweep_speed;
   const bool streaming = options.streaming || triggered;
   // Streaming: one thread processes the frames in line order while this one takes the next.
   FrameQueue queue(options.queue_frames);
@@ -619,7 +692,7 @@ Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
       if (cancel && cancel->load()) return stop(Status(StatusCode::kCancelled, "scan cancelled"));
       if (failed.load()) return stop(Status::Ok());  // the processing thread's error
       const Status on =
-          machine.scanner->StartPointerLine(line_from(i), line_to(i), options.speed_mm_per_s);
+          machine.scanner->StartPointerLine(line_from(i), line_to(i), sweep_speed);
       if (!on.ok()) return stop(on.Prefixed("line " + std::to_string(i)));
       machine.clock->SleepFor(options.settle_ms * 1e-3);
       auto frame = machine.camera->Grab();

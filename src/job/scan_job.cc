@@ -22,6 +22,7 @@ void ReadScanSection(ConfigReader& r, ScanOptions* s) {
   r.Read("region", &s->region);
   r.ReadArray("height_range_mm", s->height_range_mm.data(), 2);
   r.Read("min_stripe_fraction", &s->min_stripe_fraction);
+  r.Read("background_frames", &s->background_frames);
 }
 
 }  // namespace
@@ -83,6 +84,9 @@ void ReportScanLight(const ScanStats& st, Report* report) {
   m["columns_too_wide"] = static_cast<double>(st.too_wide);
   m["exposure_ms"] = st.exposure_ms;
   m["auto_exposure_shots"] = st.auto_exposure_shots;
+  m["pointer_speed_mm_per_s"] = st.pointer_speed_mm_per_s;
+  m["background_frames"] = st.background_frames;
+  m["background_level"] = st.background_level;
   m["machine_time_s"] = st.machine_time_s;
   m["extract_time_ms_per_frame"] = st.lines ? st.extract_time_ms / st.lines : 0.0;
   // The camera as the scan ran it: its band of rows and the frames per second of machine time.

@@ -82,6 +82,14 @@ TEST_F(DiagnoseMachine, EachChangeIsNamedFirst) {
       {"objective", "head_scale", {"world.scan_head.optics.focal_length_mm=254.6"}},
       // The X mirror's zero 0.2 mrad off: every line 51 um over.
       {"zero", "galvo_offset", {"world.scan_head.x_zero_offset_mrad=0.2"}},
+      // The Y mirror's zero -0.25 mrad off: every line 64 um along itself, which no height
+      // shows; the pointer's spots on the plate do.
+      {"zero_y", "galvo_offset", {"world.scan_head.y_zero_offset_mrad=-0.25"}},
+      // The whole camera moved 0.2 mm along y, along the lines (aim and position together):
+      // the spots move as they do for the Y mirror, but the gauge's ends move with them.
+      {"shifted",
+       "camera_pose",
+       {"world.camera.position_mm=[-182.0,1.7,299.0]", "world.camera.look_at_mm=[0.6,-0.2,0.0]"}},
       // The exit pupil 20 mm higher: the planes lean 0.1 mrad less per 10 mm of field.
       {"pupil", "light_plane", {"world.scan_head.optics.exit_pupil_height_mm=330"}},
       // The stage's screw 0.8 % long: the second pass 32 um lower than commanded.
@@ -106,6 +114,15 @@ TEST_F(DiagnoseMachine, EachChangeIsNamedFirst) {
       const double pupil = effects[0]["params"]["pupil_mm"].get<double>();
       EXPECT_GT(pupil, 10.0);
       EXPECT_LT(pupil, 40.0);
+    }
+    if (c.name == "zero_y") {
+      // -0.25 mrad x f 255 mm = -63.8 um along y; the spots scatter by a few um and the
+      // field's pincushion changes the shift by under 1 % over their +-40 mm: 5 um.
+      EXPECT_NEAR(effects[0]["params"]["oy_mm"].get<double>(), -0.0638, 0.005);
+      EXPECT_NEAR(effects[0]["params"]["ox_mm"].get<double>(), 0.0, 0.005);
+    }
+    if (c.name == "shifted") {
+      EXPECT_NEAR(effects[0]["params"]["ty_mm"].get<double>(), 0.2, 0.03);
     }
     if (c.effect == "focus_scale") {
       // c = 1e-3 /mm exactly in the world; the model's form is the world's: 3 standard errors.

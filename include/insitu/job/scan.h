@@ -14,6 +14,7 @@
 #include "insitu/core/status.h"
 #include "insitu/geometry/cloud.h"
 #include "insitu/hw/machine.h"
+#include "insitu/vision/image.h"
 #include "insitu/vision/stripe.h"
 
 namespace insitu::job {
@@ -25,7 +26,9 @@ struct ScanOptions {
   double y_start_mm = -50.0;       // line ends
   double y_end_mm = 50.0;
   double focus_z_mm = 0.0;         // pointer focus height
-  double speed_mm_per_s = 5000.0;  // seed 000 sec. 3.2
+  // seed 000 sec. 3.2; with a software trigger the nearest speed at which the exposure holds a
+  // whole number of back-and-forth sweeps (every point of the line passed equally often).
+  double speed_mm_per_s = 5000.0;
   double settle_ms = 5.0;          // wait after starting a line before exposing
   double exposure_ms = 50.0;       // seed 000 sec. 3.2
   // Before the scan, pre-shots on its first, middle and last lines set the exposure so the
@@ -37,6 +40,11 @@ struct ScanOptions {
   // fails, saying whether it saturated or was too dark (0: never). A part much smaller than
   // the lines on a table the camera cannot see needs a lower one.
   double min_stripe_fraction = 0.1;
+  // Before the lines (after auto exposure, at the scan's exposure, gain and region), the mean
+  // of this many frames with the pointer off is taken off every line's frame: the room's light
+  // on the part and its walls, which would otherwise widen and pull the stripe (vision/
+  // background.h). 0: the frames are used as the camera gives them.
+  int background_frames = 2;
   double gain_db = 0.0;
   int binning = 1;
   // 1: camera + light plane (seed 000 method 1); 2: method 1's ray, height from the
@@ -77,6 +85,11 @@ struct ScanStats {
   // the lines would give. A scan with centres in under a tenth of them fails.
   int64_t expected_columns = 0;
   double extract_time_ms = 0.0;      // wall time in the stripe extractor, all frames
+  // The pointer's speed on the lines: the job's, or the nearest at which the exposure holds a
+  // whole number of back-and-forth sweeps (the line evenly lit; software trigger only).
+  double pointer_speed_mm_per_s = 0.0;
+  int background_frames = 0;         // frames averaged into the background (0: none taken)
+  double background_level = 0.0;     // the background's mean, gray levels of the frames
 };
 
 struct ScanOutput {
@@ -98,12 +111,22 @@ class FrameProcessor {
   // Line `line`'s frame (at options.line_x(line)) into out->cloud (and cloud_method1), its
   // columns counted in out->stats; extraction wall time in out->stats.extract_time_ms.
   Status Process(const Frame& frame, int line, ScanOutput* out);
+  // The view with the pointer off (vision::AverageFrames of a few), taken off every later
+  // frame before extraction; an empty image: none. Errors: invalid_argument when a later
+  // frame differs from it in size or depth (Process says which line).
+  void SetBackground(vision::Image background);
 
  private:
   FrameProcessor() = default;
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+// The view with the pointer off: the pointer stopped, then the mean of `frames` grabs at the
+// camera's present exposure, gain and region (vision::AverageFrames). Errors: the devices'
+// (prefixed "background"), cancelled.
+Result<vision::Image> GrabBackground(hw::Machine& machine, int frames,
+                                     const std::atomic<bool>* cancel = nullptr);
 
 // Runs the scan on `machine` (the pointer is stopped on every exit path). `progress(done,
 // total)` is called on the caller's thread after each line taken (done: lines processed);

@@ -1,0 +1,31 @@
+// The exposure for a view lit by the room alone (the operator's chessboard held up or laid on
+// the plate): room light differs from cell to cell and hour to hour, and a board whose white
+// squares clip loses the edges its corners are found on; one too dark loses the board.
+#pragma once
+
+#include <string>
+
+#include "insitu/core/status.h"
+#include "insitu/hw/camera.h"
+#include "insitu/vision/targets.h"
+
+namespace insitu::job {
+
+struct RoomExposure {
+  double exposure_ms = 0.0;  // what the camera is left at
+  int shots = 0;             // frames taken to find it
+  double white_fraction = 0.0;  // the board's white level at it, of full scale (0: not seen)
+  std::string note;          // empty when it settled; else what was kept and why
+};
+
+// Frames of the board as it lies now, from `start_ms`, each rescaling the exposure so the
+// board's white squares (the 95th percentile of the gray levels inside its outer corners) sit
+// at about 65 % of full scale: within 15 % of that, and no more than 0.5 % of the board's
+// pixels clipped. The sensor is linear (room light scales with the exposure); a board not found
+// is looked for at a third of the exposure when the frame clips, three times it when not.
+// The exposure stays within start_ms / 10 .. start_ms x 10. Stops after 8 frames keeping the last exposure the board was measured at (a note says so),
+// or `start_ms` when it never was. Errors: the camera's.
+Result<RoomExposure> ExposeForBoard(hw::Camera& camera, double start_ms,
+                                    const vision::ChessboardOptions& board);
+
+}  // namespace insitu::job

@@ -1,0 +1,66 @@
+#include "insitu/vision/background.h"
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+#include <string>
+
+#include "vision/image_cv.h"
+
+namespace insitu::vision {
+namespace {
+
+cv::Mat MatOf(const ImageView& image) {
+  return cv::Mat(image.height, image.width, image.is_8bit() ? CV_8UC1 : CV_16UC1,
+                 const_cast<void*>(image.data), image.stride_bytes);
+}
+
+Status CheckSame(const ImageView& a, const ImageView& b, const std::string& what) {
+  if (a.width != b.width || a.height != b.height || a.bit_depth != b.bit_depth) {
+    return InvalidArgument(what + std::to_string(b.width) + " x " + std::to_string(b.height) +
+                           " at " + std::to_string(b.bit_depth) + " bits differs from " +
+                           std::to_string(a.width) + " x " + std::to_string(a.height) + " at " +
+                           std::to_string(a.bit_depth) + " bits");
+  }
+  return Status::Ok();
+}
+
+void Resize(const ImageView& like, Image* out) {
+  out->width = like.width;
+  out->height = like.height;
+  out->bit_depth = like.bit_depth;
+  out->bytes.resize(static_cast<size_t>(like.width) * like.height * (like.is_8bit() ? 1 : 2));
+}
+
+}  // namespace
+
+Result<Image> AverageFrames(const std::vector<ImageView>& frames) {
+  if (frames.empty()) return InvalidArgument("background: no frame to average");
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const std::string what = "background: frame " + std::to_string(i) + ": ";
+    INSITU_RETURN_IF_ERROR(CheckImageView(frames[i], what));
+    INSITU_RETURN_IF_ERROR(CheckSame(frames[0], frames[i], what));
+  }
+  cv::Mat sum = cv::Mat::zeros(frames[0].height, frames[0].width, CV_32F);
+  for (const ImageView& f : frames) cv::accumulate(MatOf(f), sum);
+  Image out;
+  Resize(frames[0], &out);
+  const ImageView v = out.view();
+  cv::Mat dst = MatOf(v);
+  sum.convertTo(dst, dst.type(), 1.0 / static_cast<double>(frames.size()));  // rounds
+  return out;
+}
+
+Status SubtractBackground(const ImageView& frame, const ImageView& background, Image* out) {
+  INSITU_RETURN_IF_ERROR(CheckImageView(frame, "background: frame: "));
+  INSITU_RETURN_IF_ERROR(CheckImageView(background, "background: "));
+  INSITU_RETURN_IF_ERROR(CheckSame(frame, background, "background: "));
+  Resize(frame, out);
+  const ImageView v = out->view();
+  cv::Mat dst = MatOf(v);
+  const cv::Mat raw = MatOf(frame);
+  cv::subtract(raw, MatOf(background), dst);  // saturates at 0
+  dst.setTo(frame.max_value(), raw >= frame.max_value());
+  return Status::Ok();
+}
+
+}  // namespace insitu::vision
