@@ -199,9 +199,17 @@ Result<GroupDiagnosis> DiagnoseGroups(const GroupModel& model,
     std::shuffle(keys.begin(), keys.end(), rng);
     for (size_t k = 0; k < keys.size(); ++k) key_fold[keys[k]] = static_cast<int>(k % o.folds);
   }
-  const auto held_out = [&](const std::vector<int>& groups) -> Result<double> {
+  // The held-out rms of the pool and of each channel (0 for a channel without units).
+  const int channels = std::max(1, model.channels());
+  struct HeldOut {
+    double pool = 0.0;
+    std::vector<double> channel;
+  };
+  const auto held_out_all = [&](const std::vector<int>& groups) -> Result<HeldOut> {
     double ss = 0.0;
     int count = 0;
+    std::vector<double> ss_c(channels, 0.0);
+    std::vector<int> count_c(channels, 0);
     for (int f = 0; f < o.folds; ++f) {
       std::vector<int> train, test;
       for (int i = 0; i < n; ++i) (key_fold[model.fold_key(i)] == f ? test : train).push_back(i);
@@ -211,11 +219,21 @@ Result<GroupDiagnosis> DiagnoseGroups(const GroupModel& model,
       std::vector<double> r;
       if (!model.Residuals(fit.theta, test, &r))
         return FailedPrecondition("held-out units cannot be evaluated");
-      for (double v : r) ss += v * v;
+      for (size_t k = 0; k < r.size(); ++k) {
+        ss += r[k] * r[k];
+        const int c = std::clamp(model.channel(test[k]), 0, channels - 1);
+        ss_c[c] += r[k] * r[k];
+        ++count_c[c];
+      }
       count += static_cast<int>(r.size());
     }
     if (count == 0) return FailedPrecondition("no held-out units");
-    return std::sqrt(ss / count);
+    HeldOut h;
+    h.pool = std::sqrt(ss / count);
+    for (int c = 0; c < channels; ++c) {
+      h.channel.push_back(count_c[c] > 0 ? std::sqrt(ss_c[c] / count_c[c]) : 0.0);
+    }
+    return h;
   };
 
   GroupDiagnosis d;
@@ -224,7 +242,8 @@ Result<GroupDiagnosis> DiagnoseGroups(const GroupModel& model,
   for (size_t g = 0; g < nuisance.size(); ++g) current.push_back(static_cast<int>(g));
   auto base = Fit(model, all, layout, current, everything, o.max_iterations);
   if (!base.ok()) return base.status().Prefixed("the model as calibrated");
-  INSITU_ASSIGN_OR_RETURN(d.nominal_cv_rms, held_out(current));
+  INSITU_ASSIGN_OR_RETURN(HeldOut cv_all, held_out_all(current));
+  d.nominal_cv_rms = cv_all.pool;
   d.nominal_rms = std::sqrt(base->rss / n);
   GroupFit best = *base;
   double bic = Bic(best.rss, n, best.parameters);
@@ -261,23 +280,32 @@ Result<GroupDiagnosis> DiagnoseGroups(const GroupModel& model,
       if (bic - c.bic < o.min_delta_bic) break;
       std::vector<int> trial = current;
       trial.push_back(c.group);
-      auto trial_cv = held_out(trial);
-      if (!trial_cv.ok()) {
-        d.notes.push_back(all[c.group].name + ": held-out fit: " + trial_cv.status().message());
+      auto trial_all = held_out_all(trial);
+      if (!trial_all.ok()) {
+        d.notes.push_back(all[c.group].name + ": held-out fit: " + trial_all.status().message());
         continue;
       }
-      if (!(*trial_cv < (1.0 - o.min_cv_improvement) * cv)) {
+      const double trial_cv = trial_all->pool;
+      // The pool's held-out error lowered enough; or one channel's, the pool's not raised.
+      bool lowers = trial_cv < (1.0 - o.min_cv_improvement) * cv;
+      for (int ch = 0; ch < channels && !lowers && channels > 1; ++ch) {
+        lowers = cv_all.channel[ch] > 0 &&
+                 trial_all->channel[ch] < (1.0 - o.min_cv_improvement) * cv_all.channel[ch] &&
+                 trial_cv < cv;
+      }
+      if (!lowers) {
         d.notes.push_back(all[c.group].name + " lowers BIC by " + std::to_string(bic - c.bic) +
                           " but the held-out error only from " + std::to_string(cv) + " to " +
-                          std::to_string(*trial_cv) + ": not a cause");
+                          std::to_string(trial_cv) + ": not a cause");
         continue;
       }
       entered.push_back(c.group);
       entered_bic.push_back(c.bic - bic);
-      entered_cv.push_back(*trial_cv);
+      entered_cv.push_back(trial_cv);
       current = trial;
       bic = c.bic;
-      cv = *trial_cv;
+      cv = trial_cv;
+      cv_all = *trial_all;
       best = c.fit;
       took = true;
       break;

@@ -201,7 +201,9 @@ Result<calib::CameraIntrinsics> MeasureIntrinsics(CalibrateRun& run,
     if (spec.board_auto_exposure) {
       // Each pose turns the board to the room's light otherwise: each view is exposed for
       // itself, from the last one's exposure.
-      auto exposed = ExposeForBoard(*machine.camera, exposure_ms, board);
+      auto exposed =
+          ExposeForBoard(*machine.camera, exposure_ms, spec.board_exposure_ms / 10.0,
+                         spec.board_exposure_ms * 10.0, board, run.options.cancel);
       if (!exposed.ok()) return PhaseFailure(exposed.status(), "intrinsics: ");
       shots += exposed->shots;
       if (exposed->white_fraction > 0) {

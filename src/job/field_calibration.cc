@@ -614,7 +614,8 @@ Result<Report> RunFieldCalibrationJob(const LoadedJob& job, const RunOptions& op
   }
   if (spec.board_auto_exposure) {
     auto exposed = ExposeForBoard(*machine.camera, spec.board_exposure_ms,
-                                  {spec.board.inner_cols, spec.board.inner_rows});
+                                  spec.board_exposure_ms / 10.0, spec.board_exposure_ms * 10.0,
+                                  {spec.board.inner_cols, spec.board.inner_rows}, options.cancel);
     if (!exposed.ok()) return fail("plate: ", exposed.status());
     report.metrics["board_exposure_ms"] = exposed->exposure_ms;
     if (!exposed->note.empty()) report.warnings.push_back("plate: " + exposed->note);

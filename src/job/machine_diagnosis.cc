@@ -46,8 +46,8 @@ struct DiagnoseMachineSpec {
   // (galvo mm, focused on the plate): where the head puts the beam against where the camera
   // sees it, along the lines too, which the gauge's heights cannot show (a Y mirror's zero).
   // Either list empty: no spots.
-  std::vector<double> spot_x_mm{-30.0, 30.0};
-  std::vector<double> spot_y_mm{-40.0, -20.0, 0.0, 20.0, 40.0};
+  std::vector<double> spot_x_mm{-40.0, -25.0, 25.0, 40.0};
+  std::vector<double> spot_y_mm{-40.0, -30.0, -20.0, -10.0, 0.0, 10.0, 20.0, 30.0, 40.0};
   double spot_exposure_ms = 0.5;
   // The gauge stands where it stood for the baseline (a fixture on the stage): its ends along
   // the lines are then a mark in the world, and tell the camera's shift along the lines from
@@ -75,6 +75,13 @@ Status ReadSpec(const LoadedJob& job, DiagnoseMachineSpec* s, hw::MachineConfig*
       d.Read("spot_exposure_ms", &s->spot_exposure_ms);
       d.Read("gauge_fixed", &s->gauge_fixed);
       if (d.ok() && !(s->spot_exposure_ms > 0)) d.Fail("spot_exposure_ms", "must be > 0");
+      for (const auto* list : {&s->spot_x_mm, &s->spot_y_mm}) {
+        std::vector<double> sorted = *list;
+        std::sort(sorted.begin(), sorted.end());
+        if (d.ok() && std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) {
+          d.Fail(list == &s->spot_x_mm ? "spot_x_mm" : "spot_y_mm", "lists a value twice");
+        }
+      }
       if (d.ok() && s->stage_z_mm.empty()) d.Fail("stage_z_mm", "must list at least one height");
       if (d.ok() && !(s->bin_mm > 0)) d.Fail("bin_mm", "must be > 0");
       if (d.ok()) d.FailFromValidate(s->selection.Validate());
@@ -83,6 +90,23 @@ Status ReadSpec(const LoadedJob& job, DiagnoseMachineSpec* s, hw::MachineConfig*
   if (s->scan.artifact != "step_gauge") {
     return InvalidArgument(job.path +
                            ": a diagnose_machine job needs an artifact: of kind step_gauge");
+  }
+  // A spot must land on the plate: one on the gauge (2 mm around it) would be intersected with
+  // the plate's plane at the wrong height.
+  const inspect::StepGaugeSpec& g = s->scan.gauge;
+  const double half_x = 0.5 * g.step_width_mm * g.heights_mm.size() + 2.0;
+  const double half_y = 0.5 * g.length_mm + 2.0;
+  for (double x : s->spot_x_mm) {
+    for (double y : s->spot_y_mm) {
+      if (std::abs(x - g.center_x_mm) < half_x && std::abs(y - g.center_y_mm) < half_y) {
+        char text[200];
+        std::snprintf(text, sizeof text,
+                      ": diagnosis.spot_x_mm, spot_y_mm: the spot at (%g, %g) mm lies on the "
+                      "gauge (or within 2 mm of it): spots go on the plate beside it",
+                      x, y);
+        return InvalidArgument(job.path + text);
+      }
+    }
   }
   if (s->scan.method != 1) {
     return InvalidArgument(job.path + ": reconstruction.method must be 1 (camera and light plane)");
@@ -197,6 +221,9 @@ class CellModel : public fit::GroupModel {
   }
 
   int units() const override { return static_cast<int>(obs_.size()); }
+  // Channels: the gauge (heights and ends: what the scan measures) and the pointer's spots.
+  int channels() const override { return 2; }
+  int channel(int unit) const override { return OnLine(obs_[unit]) ? 0 : 1; }
   // A line's heights and ends are held out together; each spot on its own.
   int fold_key(int unit) const override {
     const Observation& o = obs_[unit];
@@ -225,8 +252,9 @@ class CellModel : public fit::GroupModel {
           break;
         case kSpotX:
         case kSpotY: {
-          // The spot is focused on the plate: it lands where the field puts its command.
-          const double z = passes_[o.pass].focus_z_mm;
+          // The spot is focused on the plate (commanded at the stage's height): it lands where
+          // the field puts its command.
+          const double z = passes_[o.pass].stage_z_mm;
           const Vector2d landed = (scale + focus * z) * o.command + shift;
           const int axis = o.kind == kSpotX ? 0 : 1;
           r = points[k][axis] - landed[axis];
@@ -237,6 +265,7 @@ class CellModel : public fit::GroupModel {
     }
     return true;
   }
+
 
   // The points of `use` in the galvo frame for parameters theta.
   bool Points(const std::vector<double>& theta, const std::vector<int>& use,
@@ -416,6 +445,14 @@ std::string RefocusLine(bool refocus) {
   return std::string("# refocus: ") + (refocus ? "true" : "false");
 }
 
+// The baseline's record of how its frames were made: the stripe centres of a scan with the
+// room's light subtracted and the line swept evenly differ from one without by a fraction of a
+// pixel where light falls across the stripe, a change of the heights the size of their noise.
+std::string FramesLine(const ScanOptions& scan) {
+  return "# frames: room light subtracted over " + std::to_string(scan.background_frames) +
+         " frames, line swept in whole periods";
+}
+
 constexpr double kAlpha = 0.01;  // false-alarm rate of the structure test
 constexpr int kPermutations = 199;
 
@@ -509,8 +546,9 @@ Structure LineStructure(const std::vector<Observation>& observed,
   return s;
 }
 // Where each line leaves each step's top at the gauge's two ends: the outermost point on the
-// top whose next point inward follows within 2.5 of the line's median spacing (a stray centre
-// beyond the end is not the end). Lines that do not reach within 2 mm of both ends give none.
+// top followed inward by three points each within 2.5 of the line's median spacing (stray
+// centres beyond the end are not the end). Lines whose ends are not within 2 mm of the gauge's
+// give none.
 void AddGaugeEnds(const geometry::Cloud& cloud, const inspect::StepGaugeSpec& gauge,
                   double stage_z_mm, int pass, std::vector<Observation>* obs) {
   std::map<std::pair<int, int>, std::vector<std::pair<double, Vector2d>>> tops;  // y, pixel
@@ -534,12 +572,24 @@ void AddGaugeEnds(const geometry::Cloud& cloud, const inspect::StepGaugeSpec& ga
     std::nth_element(gaps.begin(), gaps.begin() + gaps.size() / 2, gaps.end());
     const double joined = 2.5 * gaps[gaps.size() / 2];
     const int n = static_cast<int>(top.size());
+    // The end: the outermost point followed inward by kJoined points each within `joined`.
+    constexpr int kJoined = 3;
+    const auto run_from = [&](int i, int dir) {
+      for (int k = 0; k < kJoined; ++k) {
+        const int a = i + dir * k, b = a + dir;
+        if (b < 0 || b >= n || std::abs(top[b].first - top[a].first) > joined) return false;
+      }
+      return true;
+    };
     int lo = 0, hi = n - 1;
-    while (lo + 1 < n && top[lo + 1].first - top[lo].first > joined) ++lo;
-    while (hi > 0 && top[hi].first - top[hi - 1].first > joined) --hi;
+    while (lo < n && !run_from(lo, +1)) ++lo;
+    while (hi >= 0 && !run_from(hi, -1)) --hi;
     const double y_lo = gauge.center_y_mm - 0.5 * gauge.length_mm;
     const double y_hi = gauge.center_y_mm + 0.5 * gauge.length_mm;
-    if (!(lo < hi) || top[lo].first > y_lo + 2.0 || top[hi].first < y_hi - 2.0) continue;
+    // Both ends within 2 mm of the gauge's, neither beyond it by more.
+    if (!(lo < hi) || std::abs(top[lo].first - y_lo) > 2.0 || std::abs(top[hi].first - y_hi) > 2.0) {
+      continue;
+    }
     for (const auto& [index, side] : {std::pair{lo, -1}, std::pair{hi, +1}}) {
       Observation o;
       o.pixel = top[index].second;
@@ -553,8 +603,8 @@ void AddGaugeEnds(const geometry::Cloud& cloud, const inspect::StepGaugeSpec& ga
   }
 }
 
-// The pointer parked at every spot of the spec on the plate (focused on it) at this pass's
-// stage height, found against a frame with the pointer off; a spot not found is warned about
+// The pointer parked at every spot of the spec on the plate (commanded at the stage's height,
+// so focused on the plate's top), found against a frame with the pointer off; a spot not found is warned about
 // and left out. The exposure is left at the spots'.
 Status MeasureSpots(hw::Machine& machine, const DiagnoseMachineSpec& spec, const Pass& pass,
                     int pass_index, const RunOptions& options, std::vector<Observation>* obs,
@@ -572,7 +622,7 @@ Status MeasureSpots(hw::Machine& machine, const DiagnoseMachineSpec& spec, const
         (void)machine.scanner->StopPointer();
         return Status(StatusCode::kCancelled, "cancelled");
       }
-      const Vector3d p(x, y, pass.focus_z_mm);
+      const Vector3d p(x, y, pass.stage_z_mm);  // focused on the plate's top
       Status on = machine.scanner->StartPointerLine(p, p, 1.0);
       if (!on.ok()) return on.Prefixed("spots");
       machine.clock->SleepFor(0.005);
@@ -692,9 +742,11 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
               scanned->cloud.size(), bins.size(), ends, (obs.size() - heights - ends) / 2);
   }
   (void)machine.stage->MoveTo(0.0);
-  if (obs.size() < 50) {
+  const auto heights = static_cast<size_t>(
+      std::count_if(obs.begin(), obs.end(), [](const Observation& o) { return o.kind == kHeight; }));
+  if (heights < 50) {
     return finish(false,
-                  "only " + std::to_string(obs.size()) +
+                  "only " + std::to_string(heights) +
                       " binned points on the gauge's tops: is the gauge where artifact.center_mm "
                       "says, and in the scan's x range?");
   }
@@ -728,7 +780,8 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
         "# heights (step >= 0, bin along y), the gauge's ends (bin -100000: y low, 100000: y "
         "high) and pointer spots (step -1: x, -2: y; line_x: the spot's x, bin: its y in um)\n"
         "# calibration: " +
-        spec.scan.machine.calibration_path + "\n" + RefocusLine(spec.refocus) +
+        spec.scan.machine.calibration_path + "\n" + RefocusLine(spec.refocus) + "\n" +
+        FramesLine(spec.scan.scan) +
         "\nstage_z_mm,line_x_mm,step,bin,residual_mm\n";
     double ss = 0;
     for (size_t k = 0; k < obs.size(); ++k) {
@@ -764,12 +817,13 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
       return finish(false, no_baseline);
     }
     std::map<std::string, double> base;
-    std::string refocus_line;
+    std::string refocus_line, frames_line;
     std::string line;
     int row = 0;
     while (std::getline(in, line)) {
       ++row;
       if (line.rfind("# refocus:", 0) == 0) refocus_line = line;
+      if (line.rfind("# frames:", 0) == 0) frames_line = line;
       if (line.empty() || line[0] == '#' || line.rfind("stage_z_mm", 0) == 0) continue;
       const size_t comma = line.rfind(',');
       char* end = nullptr;
@@ -791,6 +845,14 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
                         (refocus_line.empty() ? "no refocus line (an older baseline)"
                                               : "'" + refocus_line + "'") +
                         ", this run has '" + RefocusLine(spec.refocus) +
+                        "': record the baseline again (--set diagnosis.record_baseline=true)");
+    }
+    if (frames_line != FramesLine(spec.scan.scan)) {
+      return finish(false,
+                    spec.baseline_path + ": recorded with " +
+                        (frames_line.empty() ? "frames made otherwise (an older baseline)"
+                                             : "'" + frames_line + "'") +
+                        ", this run has '" + FramesLine(spec.scan.scan) +
                         "': record the baseline again (--set diagnosis.record_baseline=true)");
     }
     std::vector<Observation> kept;

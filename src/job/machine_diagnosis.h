@@ -17,8 +17,13 @@
 //   focus_scale        c (1e-3 / mm: the field's size against the dynamic focus, x += c z x;
 //                      needs two heights, each pass focused on the gauge: diagnosis.refocus)
 // The gauge's placement does not change the heights of a level gauge on the plate; it only
-// decides which step a point is on (edges kept out by the margin). Each point's residual is its height minus its step's; fit::DiagnoseGroups
-// selects the causes (BIC, and the held-out error over whole scan lines).
+// decides which step a point is on (edges kept out by the margin). The residuals: each binned
+// point's height minus its step's; where each line leaves a step's top at the gauge's ends,
+// its y minus the end's (the gauge standing where it stood for the baseline); and each pointer
+// spot parked on the plate, where the camera sees it minus where the field puts its command (x
+// and y), which shows the field's shift along the lines. All less the baseline's (the machine
+// as calibrated). fit::DiagnoseGroups selects the causes (BIC, and the held-out error over
+// whole scan lines).
 #pragma once
 
 #include "insitu/core/status.h"

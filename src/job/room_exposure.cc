@@ -14,7 +14,6 @@ constexpr double kTarget = 0.65;         // the white squares' level, of full sc
 constexpr double kTolerance = 0.15;      // relative: settled within it
 constexpr double kMaxClipped = 0.005;    // of the board's pixels at full scale
 constexpr int kMaxShots = 8;
-constexpr double kRange = 10.0;          // the exposure stays within start / 10 .. start x 10
 
 struct Level {
   bool found = false;
@@ -71,24 +70,32 @@ std::string Ms(double ms) {
 
 }  // namespace
 
-Result<RoomExposure> ExposeForBoard(hw::Camera& camera, double start_ms,
-                                    const vision::ChessboardOptions& board) {
+Result<RoomExposure> ExposeForBoard(hw::Camera& camera, double start_ms, double min_ms,
+                                    double max_ms, const vision::ChessboardOptions& board,
+                                    const std::atomic<bool>* cancel) {
   RoomExposure out;
-  double ms = start_ms;
-  double measured_ms = -1.0;  // the last exposure the board was measured at
+  double ms = std::clamp(start_ms, min_ms, max_ms);
+  double measured_ms = -1.0;  // the last exposure the board was measured at, unclipped
   double measured_white = 0.0;
+  double too_dark = 0.0, too_bright = 0.0;  // bracket: not found dark / clipped (0: unknown)
   for (int shot = 0; shot < kMaxShots; ++shot) {
-    INSITU_RETURN_IF_ERROR(camera.SetExposure(ms * 1e3).Prefixed("board exposure"));
+    if (cancel && cancel->load()) return Status(StatusCode::kCancelled, "cancelled");
+    const Status set = camera.SetExposure(ms * 1e3);
+    if (set.code() == StatusCode::kOutOfRange && shot > 0) break;  // at the camera's limit
+    INSITU_RETURN_IF_ERROR(set.Prefixed("board exposure"));
     auto frame = camera.Grab();
     if (!frame.ok()) return frame.status().Prefixed("board exposure: camera");
     ++out.shots;
     const Level level = Measure(*frame, board);
     const double full = frame->max_value();
     double next = ms;
-    if (!level.found) {
-      next = level.clipped > kMaxClipped ? ms / 3.0 : ms * 3.0;
-    } else if (level.clipped > kMaxClipped || level.white >= full) {
-      next = ms / 3.0;  // clipped: its level is unknown, only that it is too high
+    const bool clipped = level.clipped > kMaxClipped || (level.found && level.white >= full);
+    if (clipped) {
+      too_bright = too_bright > 0 ? std::min(too_bright, ms) : ms;
+      next = too_dark > 0 ? std::sqrt(too_dark * too_bright) : ms / 3.0;
+    } else if (!level.found) {
+      too_dark = std::max(too_dark, ms);
+      next = too_bright > 0 ? std::sqrt(too_dark * too_bright) : ms * 3.0;
     } else {
       measured_ms = ms;
       measured_white = level.white / full;
@@ -99,7 +106,7 @@ Result<RoomExposure> ExposeForBoard(hw::Camera& camera, double start_ms,
       }
       next = ms * kTarget / std::max(measured_white, 1e-3);
     }
-    next = std::clamp(next, start_ms / kRange, start_ms * kRange);
+    next = std::clamp(next, min_ms, max_ms);
     if (next == ms) break;  // at the end of the range
     ms = next;
   }

@@ -3,6 +3,7 @@
 // squares clip loses the edges its corners are found on; one too dark loses the board.
 #pragma once
 
+#include <atomic>
 #include <string>
 
 #include "insitu/core/status.h"
@@ -21,11 +22,15 @@ struct RoomExposure {
 // Frames of the board as it lies now, from `start_ms`, each rescaling the exposure so the
 // board's white squares (the 95th percentile of the gray levels inside its outer corners) sit
 // at about 65 % of full scale: within 15 % of that, and no more than 0.5 % of the board's
-// pixels clipped. The sensor is linear (room light scales with the exposure); a board not found
-// is looked for at a third of the exposure when the frame clips, three times it when not.
-// The exposure stays within start_ms / 10 .. start_ms x 10. Stops after 8 frames keeping the last exposure the board was measured at (a note says so),
-// or `start_ms` when it never was. Errors: the camera's.
-Result<RoomExposure> ExposeForBoard(hw::Camera& camera, double start_ms,
-                                    const vision::ChessboardOptions& board);
+// pixels clipped. The sensor is linear (room light scales with the exposure). A board not found
+// is looked for at a third of the exposure when the frame clips, three times it when not; once
+// an exposure too dark and one clipped are both known, between them (geometric mean). The
+// exposure stays within [min_ms, max_ms] and within what the camera accepts (an out_of_range
+// from it ends the search there). Stops after 8 frames keeping the last exposure the board was
+// measured at unclipped (a note says so), or `start_ms` when it never was. Errors: the
+// camera's; cancelled.
+Result<RoomExposure> ExposeForBoard(hw::Camera& camera, double start_ms, double min_ms,
+                                    double max_ms, const vision::ChessboardOptions& board,
+                                    const std::atomic<bool>* cancel = nullptr);
 
 }  // namespace insitu::job

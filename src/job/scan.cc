@@ -141,7 +141,9 @@ Status FrameProcessor::Process(const Frame& frame, int i, ScanOutput* out) {
   const Eigen::Vector3d to(x, options.y_end_mm, options.focus_z_mm);
   vision::ImageView view = vision::ViewOf(frame);
   if (!m.background.bytes.empty()) {
-    const Status subtracted = vision::SubtractBackground(view, m.background.view(), &m.subtracted);
+    const Status subtracted =
+        vision::SubtractBackground(view, m.background.view(), &m.subtracted,
+                                   m.stripe_options.saturation_level);
     if (!subtracted.ok()) return subtracted.Prefixed("line " + std::to_string(i));
     view = m.subtracted.view();
   }
@@ -628,6 +630,7 @@ Result<ScanOutput> RunScan(hw::Machine& machine, const ScanOptions& options,
     const double period = rate > 0 ? 1.02 / rate : 0.0;
     sweep.dwell_s = std::max(out.stats.exposure_ms * 1e-3 + 0.5e-3, period - sweep.settle_s);
     out.stats.trigger = "head";
+    out.stats.pointer_speed_mm_per_s = sweep.speed_mm_per_s;  // the head's own sweep
     INSITU_RETURN_IF_ERROR(machine.camera->StartTriggered().Prefixed("camera trigger"));
     struct TriggerGuard {  // the camera back on software trigger, whatever happens
       hw::Camera* camera;

@@ -1,5 +1,6 @@
 #include "insitu/vision/background.h"
 
+#include <algorithm>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 #include <string>
@@ -50,7 +51,8 @@ Result<Image> AverageFrames(const std::vector<ImageView>& frames) {
   return out;
 }
 
-Status SubtractBackground(const ImageView& frame, const ImageView& background, Image* out) {
+Status SubtractBackground(const ImageView& frame, const ImageView& background, Image* out,
+                          int saturation_level) {
   INSITU_RETURN_IF_ERROR(CheckImageView(frame, "background: frame: "));
   INSITU_RETURN_IF_ERROR(CheckImageView(background, "background: "));
   INSITU_RETURN_IF_ERROR(CheckSame(frame, background, "background: "));
@@ -59,7 +61,9 @@ Status SubtractBackground(const ImageView& frame, const ImageView& background, I
   cv::Mat dst = MatOf(v);
   const cv::Mat raw = MatOf(frame);
   cv::subtract(raw, MatOf(background), dst);  // saturates at 0
-  dst.setTo(frame.max_value(), raw >= frame.max_value());
+  const int clipped = saturation_level > 0 ? std::min(saturation_level, frame.max_value())
+                                           : frame.max_value();
+  dst.setTo(frame.max_value(), raw >= clipped);
   return Status::Ok();
 }
 

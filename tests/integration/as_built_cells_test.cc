@@ -85,14 +85,8 @@ TEST(AsBuiltCells, EveryDrawnCellMeasuresTheGaugeWithinTheBar) {
     std::printf("cell %d:%s\n", i, drawn.c_str());
     const fs::path dir = fs::temp_directory_path() / ("insitu_as_built_cell_" + std::to_string(i));
     fs::remove_all(dir);
-    const std::string cal = (dir / "machine.yaml").string();
-    const std::string measured = (dir / "measured.yaml").string();
-    auto calibrated = testing::QuickCalibrate(cal, (dir / "calibrate").string(), world);
-    ASSERT_TRUE(calibrated.ok()) << calibrated.status().ToString();
-    auto field = testing::RunShippedJob(
-        "field_calibration.yaml",
-        With(world, {"machine.calibration=" + cal, "output.calibration=" + measured}),
-        (dir / "field").string());
+    std::string measured;
+    auto field = testing::CalibrateAndMeasureHead(dir.string(), world, &measured);
     ASSERT_TRUE(field.ok()) << field.status().ToString();
     auto gauge = testing::RunShippedJob(
         "accuracy_step_gauge.yaml",

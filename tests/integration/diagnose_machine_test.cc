@@ -121,9 +121,6 @@ TEST_F(DiagnoseMachine, EachChangeIsNamedFirst) {
       EXPECT_NEAR(effects[0]["params"]["oy_mm"].get<double>(), -0.0638, 0.005);
       EXPECT_NEAR(effects[0]["params"]["ox_mm"].get<double>(), 0.0, 0.005);
     }
-    if (c.name == "shifted") {
-      EXPECT_NEAR(effects[0]["params"]["ty_mm"].get<double>(), 0.2, 0.03);
-    }
     if (c.effect == "focus_scale") {
       // c = 1e-3 /mm exactly in the world; the model's form is the world's: 3 standard errors.
       const double v = effects[0]["params"]["c_permille_per_mm"].get<double>();

@@ -8,7 +8,9 @@
 //
 // Sizes: the gauge's binned heights scatter by ~13 um about the baseline. Each range is chosen
 // from single runs (tests/integration/diagnose_machine_test.cc) so that the change moves the
-// heights by about 3 to 10 times that, rms: a few times the noise to many times.
+// heights by about 3 to 10 times that, rms: a few times the noise to many times; a change along
+// the lines (the Y mirror, the camera moved along y) moves the spots and the gauge's ends by
+// as much instead.
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
@@ -66,8 +68,8 @@ std::string DiagnoseMachineTrials::cal_;
 
 struct Hidden {
   std::string effect;
-  // The world change for a draw from the generator.
-  std::function<std::vector<std::string>(std::mt19937&)> change;
+  // The world change for trial t (0..9), drawn from the generator.
+  std::function<std::vector<std::string>(std::mt19937&, int)> change;
 };
 
 double Uniform(std::mt19937& rng, double lo, double hi) {
@@ -79,26 +81,27 @@ TEST_F(DiagnoseMachineTrials, EachHiddenChangeIsNamedFirstIn9Of10) {
   const std::vector<Hidden> hidden = {
       // The camera bumped, about or along one of its six axes in turn (trial t: axis t % 6),
       // each by a size that moves the heights or the gauge's ends by a few times their noise:
-      // its aim 0.15-0.6 mm in any direction at the plate (0.4-1.7 mrad about the camera's
-      // horizontal and vertical axes), its roll 0.03-0.12 deg about the optical axis, or the
-      // whole camera moved 0.1-0.4 mm along x, y or z (aim and position together).
+      // its aim 0.15-0.6 mm at the plate (0.4-1.7 mrad) panned or tilted, its roll 0.03-0.12 deg
+      // about the optical axis, or the whole camera moved 0.1-0.4 mm along x, y or z (aim and
+      // position together).
       {"camera_pose",
-       [](std::mt19937& rng) {
-         static int trial = 0;
-         const int axis = trial++ % 6;
-         const double a = Uniform(rng, 0, 2 * M_PI), r = Uniform(rng, 0.15, 0.6);
+       [](std::mt19937& rng, int trial) {
+         const int axis = trial % 6;
          const double t = Sign(rng) * Uniform(rng, 0.1, 0.4);
+         const double aim = Sign(rng) * Uniform(rng, 0.15, 0.6);
          switch (axis) {
-           case 0:
-           case 1:
-             return std::vector<std::string>{"world.camera.look_at_mm=[" +
-                                             Num(0.6 + r * std::cos(a)) + "," +
-                                             Num(-0.4 + r * std::sin(a)) + ",0.0]"};
-           case 2:
+           case 0:  // panned: about the camera's vertical axis, its aim along y
+             return std::vector<std::string>{"world.camera.look_at_mm=[0.6," + Num(-0.4 + aim) +
+                                             ",0.0]"};
+           case 1:  // tilted: about its horizontal axis, its aim along x
+             return std::vector<std::string>{"world.camera.look_at_mm=[" + Num(0.6 + aim) +
+                                             ",-0.4,0.0]"};
+           case 2:  // rolled about the optical axis
              return std::vector<std::string>{"world.camera.roll_deg=" +
                                              Num(0.3 + Sign(rng) * Uniform(rng, 0.03, 0.12))};
            default: {
-             // The default cell's mount: position (-182, 1.5, 299), aimed at (0.6, -0.4, 0).
+             // Moved along x, y or z: the default cell's mount, position (-182, 1.5, 299)
+             // aimed at (0.6, -0.4, 0), shifted whole.
              Eigen::Vector3d d = Eigen::Vector3d::Zero();
              d[axis - 3] = t;
              return std::vector<std::string>{
@@ -113,29 +116,32 @@ TEST_F(DiagnoseMachineTrials, EachHiddenChangeIsNamedFirstIn9Of10) {
       // central part of the image, so only a strong change moves its heights by a few times
       // the noise (sized by the noise, like the pupil's and the stage's below).
       {"camera_distortion",
-       [](std::mt19937& rng) {
+       [](std::mt19937& rng, int) {
          return std::vector<std::string>{"world.camera.k1=" +
                                          Num(-0.06 + Sign(rng) * Uniform(rng, 0.3, 0.9))};
        }},
       // Another objective: focal length 1.1-3.6 mm off (0.4-1.4 %).
       {"head_scale",
-       [](std::mt19937& rng) {
+       [](std::mt19937& rng, int) {
          return std::vector<std::string>{"world.scan_head.optics.focal_length_mm=" +
                                          Num(255.0 + Sign(rng) * Uniform(rng, 1.1, 3.6))};
        }},
-      // A mirror's zero 0.07-0.25 mrad off (18-64 um), the X mirror's and the Y mirror's in
-      // turn: the X mirror moves the lines' planes (the heights), the Y mirror moves the lines
-      // along themselves (only the pointer's spots on the plate show it).
+      // A mirror's zero off, the X mirror's and the Y mirror's in turn. The X mirror moves the
+      // lines' planes: 0.07-0.25 mrad (18-64 um) moves the heights by 3-10 times their noise.
+      // The Y mirror moves the lines along themselves, which only the pointer's spots on the
+      // plate show; each spot scatters by ~25 um (the pointer's speckle on the plate): 0.12-0.4
+      // mrad (31-102 um) is 1.2-4 times that, as the X mirror's range is of the heights' noise
+      // through their triangulation.
       {"galvo_offset",
-       [](std::mt19937& rng) {
-         static int trial = 0;
-         const std::string mirror = trial++ % 2 == 0 ? "x" : "y";
-         return std::vector<std::string>{"world.scan_head." + mirror + "_zero_offset_mrad=" +
-                                         Num(Sign(rng) * Uniform(rng, 0.07, 0.25))};
+       [](std::mt19937& rng, int trial) {
+         const bool x = trial % 2 == 0;
+         return std::vector<std::string>{
+             std::string("world.scan_head.") + (x ? "x" : "y") + "_zero_offset_mrad=" +
+             Num(Sign(rng) * (x ? Uniform(rng, 0.07, 0.25) : Uniform(rng, 0.12, 0.4)))};
        }},
       // The exit pupil 45-150 mm higher or lower.
       {"light_plane",
-       [](std::mt19937& rng) {
+       [](std::mt19937& rng, int) {
          return std::vector<std::string>{"world.scan_head.optics.exit_pupil_height_mm=" +
                                          Num(310.0 + Sign(rng) * Uniform(rng, 45.0, 150.0))};
        }},
@@ -143,7 +149,7 @@ TEST_F(DiagnoseMachineTrials, EachHiddenChangeIsNamedFirstIn9Of10) {
       // per mm of focus shift from the exit pupil's geometry alone: a quarter of that to all
       // of it wrong).
       {"focus_scale",
-       [](std::mt19937& rng) {
+       [](std::mt19937& rng, int) {
          return std::vector<std::string>{
              "world.scan_head.field_effects=[{name: focus_scale, "
              "params: [" +
@@ -151,7 +157,7 @@ TEST_F(DiagnoseMachineTrials, EachHiddenChangeIsNamedFirstIn9Of10) {
        }},
       // The stage's screw 1.5-5 % off.
       {"stage_scale",
-       [](std::mt19937& rng) {
+       [](std::mt19937& rng, int) {
          return std::vector<std::string>{"world.stage.scale_error_ppm=" +
                                          Num(Sign(rng) * Uniform(rng, 15000.0, 50000.0))};
        }},
@@ -162,7 +168,7 @@ TEST_F(DiagnoseMachineTrials, EachHiddenChangeIsNamedFirstIn9Of10) {
     int first = 0;
     std::string misses;
     for (int t = 0; t < 10; ++t) {
-      std::vector<std::string> sets = h.change(rng);
+      std::vector<std::string> sets = h.change(rng, t);
       sets.push_back("world.seed=" + std::to_string(seed++));
       const std::vector<std::string> causes = Causes(sets);
       if (!causes.empty() && causes.front() == h.effect) {

@@ -28,14 +28,8 @@ void CalibrateMeasureAndGauge(const std::string& name, const std::vector<std::st
   testing::KeepTheWorld();
   const fs::path dir = fs::temp_directory_path() / ("insitu_field_heads_" + name);
   fs::remove_all(dir);
-  const std::string cal = (dir / "machine.yaml").string();
-  const std::string measured = (dir / "measured.yaml").string();
-  auto calibrated = testing::QuickCalibrate(cal, (dir / "calibrate").string(), world);
-  ASSERT_TRUE(calibrated.ok()) << calibrated.status().ToString();
-  auto field = testing::RunShippedJob(
-      "field_calibration.yaml",
-      With(world, {"machine.calibration=" + cal, "output.calibration=" + measured}),
-      (dir / "field").string());
+  std::string measured;
+  auto field = testing::CalibrateAndMeasureHead(dir.string(), world, &measured);
   ASSERT_TRUE(field.ok()) << field.status().ToString();
   auto& m = field->metrics;
   std::printf("%s: %.1f um rms before, %.2f um after (%.2f %% removed); f %.3f mm\n", name.c_str(),

@@ -63,6 +63,22 @@ inline Result<job::Report> QuickCalibrate(const std::string& calibration,
   return RunShippedJob("calibrate.yaml", sets, out_dir);
 }
 
+// What an operator runs on a new cell: calibrate (QuickCalibrate) into dir/machine.yaml, then
+// field_calibration into dir/measured.yaml, both on `world`'s keys. Returns the field
+// calibration's report (the measured calibration's path in `measured`), or the first failure.
+inline Result<job::Report> CalibrateAndMeasureHead(const std::string& dir,
+                                                   const std::vector<std::string>& world,
+                                                   std::string* measured) {
+  const std::string cal = dir + "/machine.yaml";
+  *measured = dir + "/measured.yaml";
+  auto calibrated = QuickCalibrate(cal, dir + "/calibrate", world);
+  if (!calibrated.ok()) return calibrated.status();
+  std::vector<std::string> sets = world;
+  sets.push_back("machine.calibration=" + cal);
+  sets.push_back("output.calibration=" + *measured);
+  return RunShippedJob("field_calibration.yaml", sets, dir + "/field");
+}
+
 // Where the whole-cell diagnosis starts: the default cell calibrated (QuickCalibrate) into
 // dir/machine.yaml and its diagnose_machine baseline recorded beside it
 // (dir/diagnose_baseline.csv). Returns the calibration's path.

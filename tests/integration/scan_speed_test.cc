@@ -246,7 +246,11 @@ TEST(ScanSpeed, TheBandMeasuresWhatTheWholeSensorDoes) {
   EXPECT_EQ(runs[0].stats.region_rows, world.camera.height_px);
   EXPECT_LT(runs[1].stats.region_rows, world.camera.height_px / 2);
   std::map<std::pair<int, float>, Eigen::Vector3f> whole;
-  for (const geometry::CloudPoint& p : runs[0].cloud) whole[{p.line, p.pixel_u}] = p.point_in_galvo;
+  std::map<std::pair<int, float>, float> whole_v;
+  for (const geometry::CloudPoint& p : runs[0].cloud) {
+    whole[{p.line, p.pixel_u}] = p.point_in_galvo;
+    whole_v[{p.line, p.pixel_u}] = p.pixel_v;
+  }
   size_t same = 0;
   for (const geometry::CloudPoint& p : runs[1].cloud) {
     const auto it = whole.find({p.line, p.pixel_u});
@@ -255,7 +259,9 @@ TEST(ScanSpeed, TheBandMeasuresWhatTheWholeSensorDoes) {
     // frame's first row (the extractor re-examines runs near a frame edge): a few um here,
     // far below the stripe's own noise (0.15 px at 0.16 mm/px binned, ~0.024 mm).
     EXPECT_LT((it->second - p.point_in_galvo).norm(), 0.005f)
-        << "line " << p.line << " u " << p.pixel_u;
+        << "line " << p.line << " u " << p.pixel_u << " v " << p.pixel_v << " (band from row "
+        << runs[1].stats.region_first_row << "; whole sensor: "
+        << whole_v[{p.line, p.pixel_u}] << ")";
     ++same;
   }
   // Every band point has its twin; the whole sensor may add a few outside the band (light

@@ -19,8 +19,10 @@ namespace {
 // black squares 8 % of white (printed black), the card 60 %.
 class BoardCamera : public hw::Camera {
  public:
-  explicit BoardCamera(double white_at_300ms, bool board = true)
-      : white_at_300ms_(white_at_300ms), board_(board) {}
+  // Below `min_white_seen` gray levels of white the board is lost in the card (too little
+  // contrast for its corners).
+  explicit BoardCamera(double white_at_300ms, bool board = true, double min_white_seen = 0.0)
+      : white_at_300ms_(white_at_300ms), board_(board), min_white_seen_(min_white_seen) {}
   hw::CameraInfo info() const override {
     hw::CameraInfo i;
     i.model = "test";
@@ -51,7 +53,7 @@ class BoardCamera : public hw::Camera {
       for (int u = 0; u < 640; ++u) {
         double g = 0.6 * white;
         const int i = (u - u0) / sq, j = (v - v0) / sq;
-        if (board_ && u >= u0 && v >= v0 && i < 10 && j < 7) {
+        if (board_ && white >= min_white_seen_ && u >= u0 && v >= v0 && i < 10 && j < 7) {
           g = (i + j) % 2 == 0 ? 0.08 * white : white;
         }
         f.bytes[static_cast<size_t>(v) * 640 + u] = level(g);
@@ -63,6 +65,7 @@ class BoardCamera : public hw::Camera {
  private:
   double white_at_300ms_;
   bool board_;
+  double min_white_seen_;
   double exposure_ms_ = 0.0;
   bool fail_ = false;
 };
@@ -79,7 +82,7 @@ void ExpectSettled(const RoomExposure& r, double white_at_300ms) {
 
 TEST(RoomExposure, ABoardThatClipsIsExposedShorter) {
   BoardCamera camera(700.0);  // white squares clipped at 300 ms in a bright room
-  auto r = ExposeForBoard(camera, 300.0, kBoard);
+  auto r = ExposeForBoard(camera, 300.0, 30.0, 3000.0, kBoard);
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   ExpectSettled(*r, 700.0);
   EXPECT_EQ(camera.exposure_ms(), r->exposure_ms);  // the camera is left at it
@@ -88,15 +91,24 @@ TEST(RoomExposure, ABoardThatClipsIsExposedShorter) {
 
 TEST(RoomExposure, ADimBoardIsExposedLonger) {
   BoardCamera camera(40.0);  // a dark room: white squares at 16 % of full scale
-  auto r = ExposeForBoard(camera, 300.0, kBoard);
+  auto r = ExposeForBoard(camera, 300.0, 30.0, 3000.0, kBoard);
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   ExpectSettled(*r, 40.0);
   EXPECT_GT(r->exposure_ms, 900.0);
 }
 
+// Clipped at 300 ms and at 100 ms, lost at 33 ms: the exposure is sought between the two
+// (a third or three times would go back and forth between them).
+TEST(RoomExposure, ABoardLostDarkAndClippedBrightIsSoughtBetween) {
+  BoardCamera camera(1000.0, true, 120.0);
+  auto r = ExposeForBoard(camera, 300.0, 30.0, 3000.0, kBoard);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  ExpectSettled(*r, 1000.0);
+}
+
 TEST(RoomExposure, NoBoardInViewKeepsTheStartAndSaysSo) {
   BoardCamera camera(150.0, /*board=*/false);
-  auto r = ExposeForBoard(camera, 300.0, kBoard);
+  auto r = ExposeForBoard(camera, 300.0, 30.0, 3000.0, kBoard);
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   EXPECT_EQ(r->exposure_ms, 300.0);
   EXPECT_EQ(camera.exposure_ms(), 300.0);
@@ -107,7 +119,7 @@ TEST(RoomExposure, NoBoardInViewKeepsTheStartAndSaysSo) {
 TEST(RoomExposure, ACameraFaultIsTheError) {
   BoardCamera camera(150.0);
   camera.Fail();
-  auto r = ExposeForBoard(camera, 300.0, kBoard);
+  auto r = ExposeForBoard(camera, 300.0, 30.0, 3000.0, kBoard);
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.status().code(), StatusCode::kDeviceError);
   EXPECT_NE(r.status().message().find("board exposure"), std::string::npos);

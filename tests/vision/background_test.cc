@@ -38,12 +38,12 @@ int At(const Image& im, int u, int v) {
 }
 
 TEST(Background, TheMeanOfFramesIsRoundedToTheNearestLevel) {
-  const Image a = Filled(4, 3, 8, 10), b = Filled(4, 3, 8, 13);
-  auto mean = AverageFrames({a.view(), b.view()});
+  const Image a = Filled(4, 3, 8, 10), b = Filled(4, 3, 8, 11), c = Filled(4, 3, 8, 13);
+  auto mean = AverageFrames({a.view(), b.view(), c.view()});
   ASSERT_TRUE(mean.ok()) << mean.status().ToString();
-  EXPECT_EQ(At(*mean, 2, 1), 12);  // 11.5 rounds up
-  const Image c = Filled(4, 3, 12, 4000), d = Filled(4, 3, 12, 4002);
-  auto deep = AverageFrames({c.view(), d.view()});
+  EXPECT_EQ(At(*mean, 2, 1), 11);  // 11.33
+  const Image d = Filled(4, 3, 12, 4000), e = Filled(4, 3, 12, 4002);
+  auto deep = AverageFrames({d.view(), e.view()});
   ASSERT_TRUE(deep.ok());
   EXPECT_EQ(deep->bit_depth, 12);
   EXPECT_EQ(At(*deep, 3, 2), 4001);

@@ -7,8 +7,9 @@
 // artifact lies) are always fitted. Forward selection as fit::Diagnose does it (fit/diagnose.h):
 // each candidate group is fitted jointly with those already in; the one lowering BIC most
 // enters if it lowers BIC by more than `min_delta_bic` and the held-out rms (folds of whole
-// fold keys: a scan line's residuals are not independent) by `min_cv_improvement`. An entered
-// group is an extension of the calibration; its gain is measured on the held-out units.
+// fold keys: a scan line's residuals are not independent) by `min_cv_improvement`: the pool's,
+// or one channel's (GroupModel::channels) without raising the pool's. An entered group is an
+// extension of the calibration; its gain is measured on the held-out units.
 #pragma once
 
 #include <cstdint>
@@ -39,6 +40,14 @@ class GroupModel {
   // when the model cannot be evaluated there (a ray missing its plane).
   virtual bool Residuals(const std::vector<double>& theta, const std::vector<int>& use,
                          std::vector<double>* residuals) const = 0;
+  // Observations of different kinds (a scan's heights, pointer spots on the plate) are
+  // channels 0 .. channels() - 1: a change only one kind shows must lower that kind's held-out
+  // error, not the pool's, where a few spots count for little beside a thousand heights.
+  virtual int channels() const { return 1; }
+  virtual int channel(int unit) const {
+    (void)unit;
+    return 0;
+  }
 };
 
 struct GroupSelectionOptions {

@@ -43,8 +43,9 @@ struct ScanOptions {
   // Before the lines (after auto exposure, at the scan's exposure, gain and region), the mean
   // of this many frames with the pointer off is taken off every line's frame: the room's light
   // on the part and its walls, which would otherwise widen and pull the stripe (vision/
-  // background.h). 0: the frames are used as the camera gives them.
-  int background_frames = 2;
+  // background.h). 0 (the default): the frames are used as the camera gives them; the step
+  // gauge's accuracy job and the cell's diagnosis take 2.
+  int background_frames = 0;
   double gain_db = 0.0;
   int binning = 1;
   // 1: camera + light plane (seed 000 method 1); 2: method 1's ray, height from the

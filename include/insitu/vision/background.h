@@ -20,10 +20,12 @@ namespace insitu::vision {
 // an empty or malformed view, or views that differ in size or bit depth.
 Result<Image> AverageFrames(const std::vector<ImageView>& frames);
 
-// frame - background per pixel, floored at 0, into *out (resized as needed). A sample at the
-// frame's full scale stays at full scale: a clipped stripe is still refused as saturated, not
-// measured a background's worth below it. Errors: invalid_argument for a malformed view or
-// views that differ in size or bit depth.
-Status SubtractBackground(const ImageView& frame, const ImageView& background, Image* out);
+// frame - background per pixel, floored at 0, into *out (resized as needed). A sample at or
+// above `saturation_level` (0: the frame's full scale; the stripe extractor's own level) is set
+// to full scale: a clipped stripe is still refused as saturated, not measured a background's
+// worth below it. Errors: invalid_argument for a malformed view or views that differ in size or
+// bit depth.
+Status SubtractBackground(const ImageView& frame, const ImageView& background, Image* out,
+                          int saturation_level = 0);
 
 }  // namespace insitu::vision
