@@ -14,6 +14,7 @@ constexpr double kTarget = 0.65;         // the white squares' level, of full sc
 constexpr double kTolerance = 0.15;      // relative: settled within it
 constexpr double kMaxClipped = 0.005;    // of the board's pixels at full scale
 constexpr int kMaxShots = 8;
+constexpr double kInView = 0.25;         // a frame this bright (95th percentile) would show it
 
 struct Level {
   bool found = false;
@@ -78,6 +79,7 @@ Result<RoomExposure> ExposeForBoard(hw::Camera& camera, double start_ms, double 
   double measured_ms = -1.0;  // the last exposure the board was measured at, unclipped
   double measured_white = 0.0;
   double too_dark = 0.0, too_bright = 0.0;  // bracket: not found dark / clipped (0: unknown)
+  bool not_in_view = false;
   for (int shot = 0; shot < kMaxShots; ++shot) {
     if (cancel && cancel->load()) return Status(StatusCode::kCancelled, "cancelled");
     const Status set = camera.SetExposure(ms * 1e3);
@@ -94,6 +96,13 @@ Result<RoomExposure> ExposeForBoard(hw::Camera& camera, double start_ms, double 
       too_bright = too_bright > 0 ? std::min(too_bright, ms) : ms;
       next = too_dark > 0 ? std::sqrt(too_dark * too_bright) : ms / 3.0;
     } else if (!level.found) {
+      // Not found in a frame lit well enough to show it (its bright tail at a quarter of full
+      // scale or more) and never seen clipped: the board is not in view, and a longer exposure
+      // would only take longer.
+      if (too_bright == 0.0 && level.white >= kInView * full) {
+        not_in_view = true;
+        break;
+      }
       too_dark = std::max(too_dark, ms);
       next = too_bright > 0 ? std::sqrt(too_dark * too_bright) : ms * 3.0;
     } else {
@@ -121,7 +130,7 @@ Result<RoomExposure> ExposeForBoard(hw::Camera& camera, double start_ms, double 
     out.exposure_ms = start_ms;
     out.note = "board exposure: the board was not seen unclipped in " +
                std::to_string(out.shots) + " frames from " + Ms(start_ms) + ": kept " +
-               Ms(start_ms);
+               Ms(start_ms) + (not_in_view ? " (the frame is lit: is the board in view?)" : "");
   }
   INSITU_RETURN_IF_ERROR(camera.SetExposure(out.exposure_ms * 1e3).Prefixed("board exposure"));
   return out;
