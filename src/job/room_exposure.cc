@@ -80,6 +80,7 @@ Result<RoomExposure> ExposeForBoard(hw::Camera& camera, double start_ms, double 
   double measured_white = 0.0;
   double too_dark = 0.0, too_bright = 0.0;  // bracket: not found dark / clipped (0: unknown)
   bool not_in_view = false;
+  int lit_misses = 0;  // frames lit well enough, without the board
   for (int shot = 0; shot < kMaxShots; ++shot) {
     if (cancel && cancel->load()) return Status(StatusCode::kCancelled, "cancelled");
     const Status set = camera.SetExposure(ms * 1e3);
@@ -97,9 +98,10 @@ Result<RoomExposure> ExposeForBoard(hw::Camera& camera, double start_ms, double 
       next = too_dark > 0 ? std::sqrt(too_dark * too_bright) : ms / 3.0;
     } else if (!level.found) {
       // Not found in a frame lit well enough to show it (its bright tail at a quarter of full
-      // scale or more) and never seen clipped: the board is not in view, and a longer exposure
-      // would only take longer.
-      if (too_bright == 0.0 && level.white >= kInView * full) {
+      // scale or more) and never seen clipped: a board turned away from the light may show at
+      // three times the exposure; not found there either, it is not in view, and longer
+      // exposures would only take longer.
+      if (too_bright == 0.0 && level.white >= kInView * full && lit_misses++ > 0) {
         not_in_view = true;
         break;
       }

@@ -24,8 +24,8 @@ struct RoomExposure {
 // at about 65 % of full scale: within 15 % of that, and no more than 0.5 % of the board's
 // pixels clipped. The sensor is linear (room light scales with the exposure). A board not found
 // is looked for at a third of the exposure when the frame clips, three times it when the frame
-// is dark (its 95th percentile under a quarter of full scale; lit and never clipped, the board
-// is not in view: the search stops); once
+// is dark (its 95th percentile under a quarter of full scale; lit and never clipped, once more
+// at three times, then the board is not in view: the search stops); once
 // an exposure too dark and one clipped are both known, between them (geometric mean). The
 // exposure stays within [min_ms, max_ms] and within what the camera accepts (an out_of_range
 // from it ends the search there). Stops after 8 frames keeping the last exposure the board was
