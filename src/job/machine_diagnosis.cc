@@ -351,10 +351,13 @@ class CellModel : public fit::GroupModel {
   // The gauge placement moves which step a point is on only at the edges, which the margin
   // keeps out; each point's step is fixed once (at theta = 0), so the residuals are smooth.
   static int StepOf(const inspect::StepGaugeSpec& g, const Vector2d& xy) {
+    if (std::abs(xy.y() - g.center_y_mm) > 0.5 * g.length_mm - g.edge_margin_mm) return -1;
+    return StepAtX(g, xy.x());
+  }
+  // The step whose top spans galvo x within its margins, at any y; -1: none.
+  static int StepAtX(const inspect::StepGaugeSpec& g, double x_mm) {
     const double half_width = 0.5 * g.step_width_mm * g.heights_mm.size();
-    const double x = xy.x() - g.center_x_mm + half_width;
-    const double y = xy.y() - g.center_y_mm;
-    if (std::abs(y) > 0.5 * g.length_mm - g.edge_margin_mm) return -1;
+    const double x = x_mm - g.center_x_mm + half_width;
     const int k = static_cast<int>(std::floor(x / g.step_width_mm));
     if (k < 0 || k >= static_cast<int>(g.heights_mm.size())) return -1;
     const double in = x - k * g.step_width_mm;
@@ -552,14 +555,10 @@ Structure LineStructure(const std::vector<Observation>& observed,
 void AddGaugeEnds(const geometry::Cloud& cloud, const inspect::StepGaugeSpec& gauge,
                   double stage_z_mm, int pass, std::vector<Observation>* obs) {
   std::map<std::pair<int, int>, std::vector<std::pair<double, Vector2d>>> tops;  // y, pixel
-  const double half_width = 0.5 * gauge.step_width_mm * gauge.heights_mm.size();
   for (const geometry::CloudPoint& cp : cloud) {
     const Vector3d q = cp.point_in_galvo.cast<double>() - Vector3d(0, 0, stage_z_mm);
-    const double x = q.x() - gauge.center_x_mm + half_width;
-    const int step = static_cast<int>(std::floor(x / gauge.step_width_mm));
-    if (step < 0 || step >= static_cast<int>(gauge.heights_mm.size())) continue;
-    const double in = x - step * gauge.step_width_mm;
-    if (in < gauge.edge_margin_mm || in > gauge.step_width_mm - gauge.edge_margin_mm) continue;
+    const int step = CellModel::StepAtX(gauge, q.x());
+    if (step < 0) continue;
     if (std::abs(q.z() - gauge.base_z_mm - gauge.heights_mm[step]) > 1.0) continue;
     tops[{cp.line, step}].push_back({q.y(), Vector2d(cp.pixel_u, cp.pixel_v)});
   }
