@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <map>
 #include <numeric>
@@ -286,6 +287,17 @@ Result<GroupDiagnosis> DiagnoseGroups(const GroupModel& model,
         continue;
       }
       const double trial_cv = trial_all->pool;
+      if (channels > 1) {
+        // What the candidate does to each kind of observation, for whoever reads the notes.
+        std::string note = all[c.group].name + ": held out by channel (mm)";
+        for (int ch = 0; ch < channels; ++ch) {
+          char b[64];
+          std::snprintf(b, sizeof b, "%s %d: %.4f -> %.4f", ch ? "," : "", ch, cv_all.channel[ch],
+                        trial_all->channel[ch]);
+          note += b;
+        }
+        d.notes.push_back(note);
+      }
       // The pool's held-out error lowered enough; or one channel's, the pool's not raised.
       bool lowers = trial_cv < (1.0 - o.min_cv_improvement) * cv;
       for (int ch = 0; ch < channels && !lowers && channels > 1; ++ch) {

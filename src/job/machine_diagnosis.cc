@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <numeric>
 #include <random>
+#include <tuple>
 
 #include "insitu/core/file.h"
 #include "insitu/core/log.h"
@@ -456,14 +457,8 @@ std::string FramesLine(const ScanOptions& scan) {
          " frames, line swept in whole periods";
 }
 
-constexpr double kAlpha = 0.01;  // false-alarm rate of the structure test
-constexpr int kPermutations = 199;
-
-std::string Um(double mm) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%.1f", mm * 1e3);
-  return b;
-}
+constexpr double kAlpha = 0.01;  // false-alarm rate of the structure test (both channels)
+constexpr int kPermutations = 999;
 
 std::string Join(const std::vector<std::string>& names) {
   std::string s;
@@ -471,38 +466,28 @@ std::string Join(const std::vector<std::string>& names) {
   return s;
 }
 
-// Structure in the residuals along the scan lines. Speckle makes neighbouring bins of a line
-// independent, so half the mean squared difference of neighbours is the noise variance, free of
-// any smooth structure (von Neumann); what the residuals hold beyond it is structure. Its
-// significance: the neighbours' summed products against the same sum for residuals shuffled
-// among the bins (one-sided: a structure smoother than a bin makes neighbours alike).
+// Structure in residuals whose neighbours are independent draws of the noise: neighbouring
+// bins of a scan line (speckle decorrelates within a bin) or neighbouring spots of a column.
+// Half the mean squared difference of neighbours is the noise variance, free of any smooth
+// structure (von Neumann); what the residuals hold beyond it is structure. Its significance:
+// the neighbours' summed products against the same sum for residuals shuffled among the
+// observations (one-sided: a structure smoother than the spacing makes neighbours alike).
 struct Structure {
-  double rho = 0.0;           // lag-one correlation over neighbouring bins
+  double rho = 0.0;           // lag-one correlation over neighbours
   double noise_mm = 0.0;      // from neighbours' differences
   double structure_mm = 0.0;  // rms beyond the noise
   double p = 1.0;
-  std::string where;  // the lines and stretch holding the largest residuals
+  std::string where;  // the observations holding the largest residuals
+  // Significant at the channel's share of kAlpha, and at least half the noise.
+  bool Flagged(int channels) const {
+    return p < kAlpha / channels && structure_mm >= 0.5 * noise_mm;
+  }
 };
 
-Structure LineStructure(const std::vector<Observation>& observed,
-                        const std::vector<double>& residuals, const std::vector<Pass>& passes,
-                        double bin_mm) {
-  // The heights' bins alone: the gauge's ends and the spots are not bins along a line.
-  std::vector<Observation> obs;
-  std::vector<double> r;
-  for (size_t k = 0; k < observed.size() && k < residuals.size(); ++k) {
-    if (observed[k].kind != kHeight) continue;
-    obs.push_back(observed[k]);
-    r.push_back(residuals[k]);
-  }
+// `pairs` index neighbours in `r`; fewer than 10 pairs say nothing.
+Structure PairStructure(const std::vector<double>& r,
+                        const std::vector<std::pair<int, int>>& pairs) {
   Structure s;
-  std::vector<std::pair<int, int>> pairs;
-  for (size_t k = 0; k + 1 < obs.size() && k + 1 < r.size(); ++k) {
-    const Observation &a = obs[k], &b = obs[k + 1];
-    if (a.pass == b.pass && a.line == b.line && a.step == b.step && b.bin == a.bin + 1) {
-      pairs.push_back({static_cast<int>(k), static_cast<int>(k + 1)});
-    }
-  }
   if (pairs.size() < 10) return s;
   double prod = 0, diff2 = 0, sq = 0;
   for (const auto& [i, j] : pairs) {
@@ -515,7 +500,7 @@ Structure LineStructure(const std::vector<Observation>& observed,
   const double noise2 = 0.5 * diff2 / n;
   s.noise_mm = std::sqrt(noise2);
   s.structure_mm = std::sqrt(std::max(0.0, sq / n - noise2));
-  std::vector<double> shuffled(r.begin(), r.begin() + std::min(r.size(), obs.size()));
+  std::vector<double> shuffled = r;
   std::mt19937_64 rng(0x5bd1e995ull);
   int above = 0;
   for (int t = 0; t < kPermutations; ++t) {
@@ -525,14 +510,42 @@ Structure LineStructure(const std::vector<Observation>& observed,
     above += q >= prod;
   }
   s.p = (1.0 + above) / (1.0 + kPermutations);
-  // Where: the tenth of the bins with the largest residuals.
-  std::vector<int> idx(shuffled.size());
+  return s;
+}
+
+// The tenth of the residuals largest in size (at least one).
+std::vector<int> Largest(const std::vector<double>& r) {
+  std::vector<int> idx(r.size());
   std::iota(idx.begin(), idx.end(), 0);
   std::sort(idx.begin(), idx.end(), [&](int a, int b) { return std::abs(r[a]) > std::abs(r[b]); });
-  const int top = std::max<int>(1, static_cast<int>(idx.size()) / 10);
+  idx.resize(std::min(idx.size(), std::max<size_t>(1, r.size() / 10)));
+  return idx;
+}
+
+// The heights' bins along their lines (the gauge's ends are not bins along a line).
+Structure LineStructure(const std::vector<Observation>& observed,
+                        const std::vector<double>& residuals, const std::vector<Pass>& passes,
+                        double bin_mm) {
+  std::vector<Observation> obs;
+  std::vector<double> r;
+  for (size_t k = 0; k < observed.size() && k < residuals.size(); ++k) {
+    if (observed[k].kind != kHeight) continue;
+    obs.push_back(observed[k]);
+    r.push_back(residuals[k]);
+  }
+  std::vector<std::pair<int, int>> pairs;
+  for (size_t k = 0; k + 1 < obs.size(); ++k) {
+    const Observation &a = obs[k], &b = obs[k + 1];
+    if (a.pass == b.pass && a.line == b.line && a.step == b.step && b.bin == a.bin + 1) {
+      pairs.push_back({static_cast<int>(k), static_cast<int>(k + 1)});
+    }
+  }
+  Structure s = PairStructure(r, pairs);
+  if (pairs.size() < 10) return s;
+  const std::vector<int> top = Largest(r);
   double x_lo = 1e300, x_hi = -1e300, y_lo = 1e300, y_hi = -1e300;
-  for (int k = 0; k < top; ++k) {
-    const Observation& o = obs[idx[k]];
+  for (int k : top) {
+    const Observation& o = obs[k];
     const double x = passes[o.pass].lines[o.line].first.x();
     x_lo = std::min(x_lo, x);
     x_hi = std::max(x_hi, x);
@@ -540,14 +553,86 @@ Structure LineStructure(const std::vector<Observation>& observed,
     y_hi = std::max(y_hi, (o.bin + 1) * bin_mm);
   }
   char b[200];
+  std::snprintf(
+      b, sizeof b,
+      "heights: %.1f um rms beyond %.1f um of noise, largest (%.1f um and below) on lines "
+      "at x %.1f..%.1f mm, y %.1f..%.1f mm",
+      s.structure_mm * 1e3, s.noise_mm * 1e3, std::abs(r[top[0]]) * 1e3, x_lo, x_hi, y_lo, y_hi);
+  s.where = b;
+  return s;
+}
+
+// The pointer's spots along the columns of the grid they were parked on (each pass, each axis,
+// each x: neighbours in y). A plate no longer flat moves them smoothly, speckle by chance.
+Structure SpotStructure(const std::vector<Observation>& observed,
+                        const std::vector<double>& residuals) {
+  std::vector<int> spots;
+  for (size_t k = 0; k < observed.size() && k < residuals.size(); ++k) {
+    if (!OnLine(observed[k])) spots.push_back(static_cast<int>(k));
+  }
+  const auto column = [&](int k) {
+    const Observation& o = observed[k];
+    return std::make_tuple(o.pass, static_cast<int>(o.kind), o.command.x());
+  };
+  std::sort(spots.begin(), spots.end(), [&](int a, int b) {
+    return std::make_pair(column(a), observed[a].command.y()) <
+           std::make_pair(column(b), observed[b].command.y());
+  });
+  std::vector<double> r;
+  for (int k : spots) r.push_back(residuals[k]);
+  std::vector<std::pair<int, int>> pairs;
+  for (size_t k = 0; k + 1 < spots.size(); ++k) {
+    if (column(spots[k]) == column(spots[k + 1])) {
+      pairs.push_back({static_cast<int>(k), static_cast<int>(k + 1)});
+    }
+  }
+  Structure s = PairStructure(r, pairs);
+  if (pairs.size() < 10) return s;
+  const std::vector<int> top = Largest(r);
+  double x_lo = 1e300, x_hi = -1e300, y_lo = 1e300, y_hi = -1e300;
+  for (int k : top) {
+    const Vector2d& c = observed[spots[k]].command;
+    x_lo = std::min(x_lo, c.x());
+    x_hi = std::max(x_hi, c.x());
+    y_lo = std::min(y_lo, c.y());
+    y_hi = std::max(y_hi, c.y());
+  }
+  char b[200];
   std::snprintf(b, sizeof b,
-                "%.1f um rms beyond %.1f um of noise, largest (%.1f um and below) on lines at x "
+                "spots: %.1f um rms beyond %.1f um of noise, largest (%.1f um and below) at x "
                 "%.1f..%.1f mm, y %.1f..%.1f mm",
-                s.structure_mm * 1e3, s.noise_mm * 1e3, std::abs(r[idx[0]]) * 1e3, x_lo, x_hi, y_lo,
+                s.structure_mm * 1e3, s.noise_mm * 1e3, std::abs(r[top[0]]) * 1e3, x_lo, x_hi, y_lo,
                 y_hi);
   s.where = b;
   return s;
 }
+
+// Both channels' structure: the heights along their lines and the spots along their columns.
+struct CellStructure {
+  Structure heights, spots;
+  // A channel says nothing without enough neighbours: the test is over those that do.
+  int channels() const { return (heights.where.empty() ? 0 : 1) + (spots.where.empty() ? 0 : 1); }
+  bool Flagged() const {
+    const int n = std::max(1, channels());
+    return heights.Flagged(n) || spots.Flagged(n);
+  }
+  // The smaller p, Bonferroni-adjusted over the channels tested.
+  double p() const { return std::min(1.0, std::max(1, channels()) * std::min(heights.p, spots.p)); }
+  std::string where() const {
+    const int n = std::max(1, channels());
+    std::string w;
+    for (const Structure* c : {&heights, &spots}) {
+      if (c->Flagged(n)) w += (w.empty() ? "" : "; ") + c->where;
+    }
+    return w;
+  }
+};
+
+CellStructure StructureOf(const std::vector<Observation>& obs, const std::vector<double>& residuals,
+                          const std::vector<Pass>& passes, double bin_mm) {
+  return {LineStructure(obs, residuals, passes, bin_mm), SpotStructure(obs, residuals)};
+}
+
 // Where each line leaves each step's top at the gauge's two ends: the outermost point on the
 // top followed inward by three points each within 2.5 of the line's median spacing (stray
 // centres beyond the end are not the end). Lines whose ends are not within 2 mm of the gauge's
@@ -893,17 +978,24 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
   // beside the flag, as in fit::Diagnose: a bumped camera is still named when worn bearings
   // leave their own structure beside it. Causes that only fitted part of a change they do not
   // explain are reported as partial, never as its cause.
-  const Structure before = LineStructure(obs, d->residual_nominal, passes, spec.bin_mm);
-  const Structure left = LineStructure(obs, d->residual_extended, passes, spec.bin_mm);
-  const bool unexplained = left.p < kAlpha && left.structure_mm >= 0.5 * left.noise_mm;
-  const bool explains_most =
-      left.structure_mm * left.structure_mm <= 0.25 * before.structure_mm * before.structure_mm;
+  const CellStructure before = StructureOf(obs, d->residual_nominal, passes, spec.bin_mm);
+  const CellStructure left = StructureOf(obs, d->residual_extended, passes, spec.bin_mm);
+  const bool unexplained = left.Flagged();
+  // Most of each flagged channel's structure taken away.
+  bool explains_most = true;
+  for (const auto& [l, b] :
+       {std::pair{&left.heights, &before.heights}, std::pair{&left.spots, &before.spots}}) {
+    if (l->Flagged(left.channels()) &&
+        l->structure_mm * l->structure_mm > 0.25 * b->structure_mm * b->structure_mm) {
+      explains_most = false;
+    }
+  }
   std::vector<fit::GroupReport> partial_groups;
   if (unexplained && !d->cause.empty() && !explains_most) {
-    d->notes.push_back("structure of " + Um(left.structure_mm) + " um rms is left beside " +
-                       Um(left.noise_mm) + " um of noise (of " + Um(before.structure_mm) +
-                       " um before) with the best of the library (" + Join(d->cause) +
-                       "): they fit part of a change they do not explain, so none is named");
+    d->notes.push_back("structure is left (" + left.where() + ") beside the best of the library (" +
+                       Join(d->cause) +
+                       "), which took less than three quarters of it: they fit part of a change "
+                       "they do not explain, so none is named");
     partial_groups = std::move(d->groups);
     d->groups.clear();
     d->cause.clear();
@@ -928,11 +1020,14 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
   m["extended_rms_mm"] = extended_rms;
   m["extended_cv_rms_mm"] = extended_cv_rms;
   m["gain"] = gain;
-  m["residual_lag1_correlation"] = left.rho;
-  m["residual_noise_mm"] = left.noise_mm;
-  m["residual_structure_mm"] = left.structure_mm;
-  m["nominal_structure_mm"] = before.structure_mm;
-  m["unexplained_p"] = left.p;
+  m["residual_lag1_correlation"] = left.heights.rho;
+  m["residual_noise_mm"] = left.heights.noise_mm;
+  m["residual_structure_mm"] = left.heights.structure_mm;
+  m["nominal_structure_mm"] = before.heights.structure_mm;
+  m["residual_spot_noise_mm"] = left.spots.noise_mm;
+  m["residual_spot_structure_mm"] = left.spots.structure_mm;
+  m["nominal_spot_structure_mm"] = before.spots.structure_mm;
+  m["unexplained_p"] = left.p();
   for (const fit::GroupReport& g : d->groups) {
     for (size_t k = 0; k < g.params.size(); ++k) m[g.name + "_" + g.params[k]] = g.values[k];
   }
@@ -946,7 +1041,7 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
         "one stage height: stage_scale cannot be seen (list two in "
         "diagnosis.stage_z_mm)");
   }
-  if (unexplained) report.warnings.push_back("unexplained structure: " + left.where);
+  if (unexplained) report.warnings.push_back("unexplained structure: " + left.where());
   nlohmann::ordered_json effects = nlohmann::ordered_json::array();
   for (const fit::GroupReport& g : d->groups) effects.push_back(GroupJson(g));
   nlohmann::ordered_json nominal = {{"rms_mm", d->nominal_rms}, {"cv_rms_mm", d->nominal_cv_rms}};
@@ -957,8 +1052,8 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
     report.extra_json["partial"] = p.dump();
   }
   if (unexplained)
-    report.extra_json["unexplained_where"] = nlohmann::ordered_json(left.where).dump();
-  report.extra_json["unexplained_p"] = nlohmann::ordered_json(left.p).dump();
+    report.extra_json["unexplained_where"] = nlohmann::ordered_json(left.where()).dump();
+  report.extra_json["unexplained_p"] = nlohmann::ordered_json(left.p()).dump();
   report.extra_json["n_points"] = std::to_string(obs.size());
   report.extra_json["nominal"] = nominal.dump();
   report.extra_json["effects"] = effects.dump();
@@ -992,7 +1087,7 @@ Result<Report> RunDiagnoseMachineJob(const LoadedJob& job, const RunOptions& opt
     }
   }
   std::string summary = d->cause.empty() ? "the machine is as calibrated" : "cause:";
-  if (unexplained) summary = "a change no effect of the library explains (" + left.where + ")";
+  if (unexplained) summary = "a change no effect of the library explains (" + left.where() + ")";
   for (const std::string& c : d->cause) summary += " " + c;
   log->info("diagnose_machine: {} ({:.1f} um held out as calibrated, {:.1f} um with the causes)",
             summary, d->nominal_cv_rms * 1e3, extended_cv_rms * 1e3);

@@ -219,7 +219,7 @@ Result<SimWorld::ProfileShot> SimWorld::GrabProfile() {
                     .normalized()
               : Eigen::Vector3d::UnitZ();
     const Eigen::Vector3d to_light = (emitter - p).normalized(), to_camera = (camera - p).normalized();
-    const bool on_part = scene_->TrueHeightAt(p.x(), p.y()) > 0;
+    const bool on_part = scene_->OnPart(p.x(), p.y());
     const double albedo = (on_part ? scene_->PartAlbedoAt(p.x(), p.y()) : stage_albedo) *
                           MarkFactor(p.x(), p.y(), 0.0, on_part);
     if (albedo * normal.dot(to_light) < o.min_signal || normal.dot(to_camera) <= 0.02) continue;

@@ -200,20 +200,52 @@ std::unique_ptr<PartShape> MakePartShape(const PartOptions& o) {
 
 Scene::Scene(const PartOptions& part, const StageOptions& stage)
     : part_(part), stage_(stage), shape_(MakePartShape(part)), stage_z_(stage.z_mm) {
-  cos_rot_ = std::cos(part.rotation_deg * M_PI / 180.0);
-  sin_rot_ = std::sin(part.rotation_deg * M_PI / 180.0);
+  const double half = 0.5 * stage.plate_size_mm;
+  plate_curvature_ = -stage.plate_bow_mm / (half * half);
+  const double rot = part.rotation_deg * M_PI / 180.0;
+  part_rotation_ = Eigen::AngleAxisd(rot, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  if (!shape_ || plate_curvature_ == 0.0) return;
+  // A rigid part on a bowed plate rests on the plane that supports it from below. The bow is
+  // quadratic, so on a dome (curvature < 0) that is the plate's tangent plane under the part's
+  // centre (the part balances on the crown); in a dish (> 0) it is the tangent plane lifted by
+  // the curvature times the squared reach of the footprint from its centre (it rests on its
+  // farthest points: a rectangle's four corners, which a quadratic bowl puts in one plane).
+  const double x0 = part.position_mm[0], y0 = part.position_mm[1];
+  double reach2 = 0.0;
+  if (plate_curvature_ > 0.0) {
+    const Eigen::Vector2d he = shape_->half_extent();
+    constexpr int kSteps = 200;
+    for (int j = 0; j <= kSteps; ++j) {
+      for (int i = 0; i <= kSteps; ++i) {
+        const double u = he.x() * (2.0 * i / kSteps - 1.0), v = he.y() * (2.0 * j / kSteps - 1.0);
+        if (shape_->SignedDistance2D(u, v) <= 0.0) reach2 = std::max(reach2, u * u + v * v);
+      }
+    }
+  }
+  seat_lift_ = PlateWarp(x0, y0) + plate_curvature_ * reach2;
+  seat_slope_ = 2.0 * plate_curvature_ * Eigen::Vector2d(x0, y0);
+  const Eigen::Vector3d base_normal =
+      Eigen::Vector3d(-seat_slope_.x(), -seat_slope_.y(), 1.0).normalized();
+  part_rotation_ =
+      Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), base_normal).toRotationMatrix() *
+      part_rotation_;
 }
 
 Eigen::Vector3d Scene::ToLocal(const Eigen::Vector3d& p) const {
-  const double x = p.x() - part_.position_mm[0], y = p.y() - part_.position_mm[1];
-  return {cos_rot_ * x + sin_rot_ * y, -sin_rot_ * x + cos_rot_ * y, p.z() - stage_z_};
+  const Eigen::Vector3d origin(part_.position_mm[0], part_.position_mm[1], stage_z_ + seat_lift_);
+  return part_rotation_.transpose() * (p - origin);
+}
+double Scene::BaseHeight(double x_mm, double y_mm) const {
+  return seat_lift_ +
+         seat_slope_.dot(Eigen::Vector2d(x_mm - part_.position_mm[0], y_mm - part_.position_mm[1]));
+}
+Eigen::Vector3d Scene::BaseToLocal(double x_mm, double y_mm) const {
+  return ToLocal({x_mm, y_mm, stage_z_ + BaseHeight(x_mm, y_mm)});
 }
 Eigen::Vector3d Scene::DirToLocal(const Eigen::Vector3d& d) const {
-  return {cos_rot_ * d.x() + sin_rot_ * d.y(), -sin_rot_ * d.x() + cos_rot_ * d.y(), d.z()};
+  return part_rotation_.transpose() * d;
 }
-Eigen::Vector3d Scene::DirToWorld(const Eigen::Vector3d& d) const {
-  return {cos_rot_ * d.x() - sin_rot_ * d.y(), sin_rot_ * d.x() + cos_rot_ * d.y(), d.z()};
-}
+Eigen::Vector3d Scene::DirToWorld(const Eigen::Vector3d& d) const { return part_rotation_ * d; }
 
 bool Scene::InsidePart(const Eigen::Vector3d& q) const {
   if (q.z() < 0.0) return false;
@@ -222,15 +254,22 @@ bool Scene::InsidePart(const Eigen::Vector3d& q) const {
 }
 
 double Scene::TrueHeightAt(double x_mm, double y_mm) const {
-  if (!shape_) return 0.0;
-  const Eigen::Vector3d q = ToLocal({x_mm, y_mm, stage_z_});
-  if (shape_->SignedDistance2D(q.x(), q.y()) > 0.0) return 0.0;
-  return shape_->Top(q.x(), q.y());
+  if (!OnPart(x_mm, y_mm)) return PlateWarp(x_mm, y_mm);
+  const Eigen::Vector3d q = BaseToLocal(x_mm, y_mm);
+  // The base's height here plus the top above it (the part's tilt, a few mrad at most, changes
+  // its top's height by the square of it).
+  return BaseHeight(x_mm, y_mm) + shape_->Top(q.x(), q.y());
+}
+
+bool Scene::OnPart(double x_mm, double y_mm) const {
+  if (!shape_) return false;
+  const Eigen::Vector3d q = BaseToLocal(x_mm, y_mm);
+  return shape_->SignedDistance2D(q.x(), q.y()) <= 0.0;
 }
 
 double Scene::DistanceToPartEdge(double x_mm, double y_mm) const {
   if (!shape_) return std::numeric_limits<double>::infinity();
-  const Eigen::Vector3d q = ToLocal({x_mm, y_mm, stage_z_});
+  const Eigen::Vector3d q = BaseToLocal(x_mm, y_mm);
   return std::abs(shape_->SignedDistance2D(q.x(), q.y()));
 }
 
@@ -244,12 +283,12 @@ int Scene::grid_plate_crosses_per_side() const {
 
 Eigen::Vector2d Scene::GridCrossInWorld(int i, int j) const {
   const double x = i * part_.grid_plate_pitch_mm, y = j * part_.grid_plate_pitch_mm;
-  return {part_.position_mm[0] + cos_rot_ * x - sin_rot_ * y,
-          part_.position_mm[1] + sin_rot_ * x + cos_rot_ * y};
+  const Eigen::Vector3d r = part_rotation_ * Eigen::Vector3d(x, y, 0.0);
+  return {part_.position_mm[0] + r.x(), part_.position_mm[1] + r.y()};
 }
 
 double Scene::PartAlbedoAt(double x_mm, double y_mm, double half_mm) const {
-  const Eigen::Vector3d q = ToLocal({x_mm, y_mm, stage_z_});
+  const Eigen::Vector3d q = BaseToLocal(x_mm, y_mm);
   return LocalAlbedo(q.x(), q.y(), half_mm);
 }
 
@@ -456,13 +495,22 @@ bool Scene::Intersect(const Eigen::Vector3d& origin, const Eigen::Vector3d& dire
   bool found = false;
   // The plate (an infinite plane clipped to its size).
   if (direction.z() < -1e-12) {
-    const double t = (stage_z_ - origin.z()) / direction.z();
-    const Eigen::Vector3d p = origin + direction * t;
+    double t = (stage_z_ - origin.z()) / direction.z();
+    Eigen::Vector3d p = origin + direction * t;
+    // A bowed plate: the height under the ray's point, again, until it holds. Each pass shrinks
+    // the error by the plate's slope times the ray's inclination (< 1e-2 on any plate a part
+    // can stand on): four passes leave well under a nanometre.
+    for (int pass = 0; pass < 4 && plate_curvature_ != 0.0; ++pass) {
+      t = (stage_z_ + PlateWarp(p.x(), p.y()) - origin.z()) / direction.z();
+      p = origin + direction * t;
+    }
     const double half = 0.5 * stage_.plate_size_mm;
     if (t > 0 && t <= t_max && std::abs(p.x()) <= half && std::abs(p.y()) <= half) {
       hit->t = t;
       hit->point_in_world = p;
-      hit->normal = Eigen::Vector3d::UnitZ();
+      hit->normal =
+          Eigen::Vector3d(-2.0 * plate_curvature_ * p.x(), -2.0 * plate_curvature_ * p.y(), 1.0)
+              .normalized();
       hit->albedo = stage_.plate_albedo;
       hit->on_part = false;
       t_max = t;

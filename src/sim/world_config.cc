@@ -201,6 +201,7 @@ void ReadWorld(ConfigReader& r, WorldOptions* w) {
   st.Read("plate_ablation_threshold_j_per_cm2", &w->stage.plate_ablation_threshold_j_per_cm2);
   st.Read("plate_marked_reflectance", &w->stage.plate_marked_reflectance);
   st.Read("plate_size_mm", &w->stage.plate_size_mm);
+  st.Read("plate_bow_mm", &w->stage.plate_bow_mm);
   st.Read("scale_error_ppm", &w->stage.scale_error_ppm);
   if (st.ok()) st.FailFromValidate(w->stage.Validate());
 

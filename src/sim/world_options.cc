@@ -277,6 +277,12 @@ Status StageOptions::Validate() const {
     return InvalidValue("plate_marked_reflectance", "in [0, 1 / plate_albedo]",
                         plate_marked_reflectance);
   }
+  if (!IsPositiveFinite(plate_size_mm)) return InvalidValue("plate_size_mm", "> 0", plate_size_mm);
+  // A bow of 1 % of the plate's size slopes its edges by 0.04: far past any plate a part could
+  // stand on, and where the plate's intersection (Scene) still converges in its four passes.
+  if (!(std::abs(plate_bow_mm) <= 0.01 * plate_size_mm)) {
+    return InvalidValue("plate_bow_mm", "within +-1 % of plate_size_mm", plate_bow_mm);
+  }
   if (!(std::abs(scale_error_ppm) <= 1e5)) {
     return InvalidValue("scale_error_ppm", "within +-100000", scale_error_ppm);
   }

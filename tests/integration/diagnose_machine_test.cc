@@ -184,6 +184,24 @@ TEST_F(DiagnoseMachine, APartialFitIsNotACause) {
   EXPECT_EQ(r->metrics.at("extended_cv_rms_mm"), r->metrics.at("nominal_cv_rms_mm"));
 }
 
+// The stage's plate domed by 2 mm over its 400 mm: the gauge balances on the crown, its heights
+// as before, while the plate under the pointer's spots falls by 30-160 um, the more the farther
+// from the centre. Only the spots show it, smoothly along their columns: unexplained, nothing
+// named (a pose or a mirror zero would move the gauge's heights as well).
+TEST_F(DiagnoseMachine, ADomedPlateShowsInTheSpotsAndIsUnexplained) {
+  auto r = testing::RunShippedJob(
+      "diagnose_machine.yaml",
+      {"world.stage.plate_bow_mm=2", "world.seed=33", "machine.calibration=" + cal_},
+      (dir_ / "domed").string());
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->extra_json.at("cause"), "[]");
+  EXPECT_EQ(r->extra_json.at("unexplained"), "true");
+  // The spots' structure (~40 um, twice their ~19 um of speckle); the heights' below half of
+  // their ~13 um of noise.
+  EXPECT_GT(r->metrics.at("residual_spot_structure_mm"), r->metrics.at("residual_spot_noise_mm"));
+  EXPECT_LT(r->metrics.at("residual_structure_mm"), 0.5 * r->metrics.at("residual_noise_mm"));
+}
+
 // A baseline recorded with the passes focused otherwise holds the calibration's residuals at
 // another focus: refused, with what to do.
 TEST_F(DiagnoseMachine, ABaselineFocusedOtherwiseIsRefused) {

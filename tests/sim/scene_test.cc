@@ -133,5 +133,65 @@ TEST(Scene, GridPlateCarriesChromeCrosses) {
   EXPECT_NE(bad.Validate().message().find("grid_plate_line_um"), std::string::npos);
 }
 
+// A bowed plate (a dome of 1 mm over the 400 mm plate: PlateWarp = -bow r^2 / 200^2): slanted
+// rays land on the curved top itself (to 1e-9 mm: four passes of the slope-times-inclination
+// contraction), with the bow's normal.
+TEST(Scene, ABowedPlateIsHitOnItsCurvedTop) {
+  PartOptions none;
+  none.kind = "none";
+  StageOptions stage;
+  stage.plate_bow_mm = 1.0;
+  Scene scene(none, stage);
+  EXPECT_NEAR(scene.PlateWarp(100.0, 0.0), -0.25, 1e-12);
+  const Eigen::Vector3d dir = Eigen::Vector3d(0.6, 0.3, -1.0).normalized();
+  Hit hit;
+  ASSERT_TRUE(scene.Intersect({40.0, -70.0, 200.0}, dir, 1000.0, &hit));
+  const Eigen::Vector3d& p = hit.point_in_world;
+  EXPECT_NEAR(p.z(), scene.PlateWarp(p.x(), p.y()), 1e-9);
+  EXPECT_NEAR(scene.TrueHeightAt(p.x(), p.y()), p.z(), 1e-9);
+  const double k = -1.0 / (200.0 * 200.0);
+  const Eigen::Vector3d n = Eigen::Vector3d(-2 * k * p.x(), -2 * k * p.y(), 1.0).normalized();
+  EXPECT_NEAR((hit.normal - n).norm(), 0.0, 1e-12);
+  // The stage carries the bow with it.
+  scene.set_stage_z(-5.0);
+  ASSERT_TRUE(scene.Intersect({0.0, 0.0, 100.0}, kDown, 1000.0, &hit));
+  EXPECT_NEAR(hit.point_in_world.z(), -5.0, 1e-12);
+}
+
+// The gauge (20 x 80 mm) rests rigidly on a bowed plate: on a dome's crown at the centre
+// (heights as on a flat plate), on its four corners in a dish (lifted by the curvature times
+// 10^2 + 40^2 mm^2), and off centre tilted by the slope under its centre.
+TEST(Scene, APartRestsRigidlyOnABowedPlate) {
+  const double xs[] = {-7.5, -2.5, 2.5, 7.5};
+  const double hs[] = {3, 5, 10, 15};
+  for (double bow : {1.0, -1.0}) {
+    StageOptions stage;
+    stage.plate_bow_mm = bow;
+    Scene scene(PartOptions{}, stage);
+    const double lift = bow > 0 ? 0.0 : 1700.0 / 40000.0;
+    for (int i = 0; i < 4; ++i) {
+      for (double y : {-35.0, 0.0, 35.0}) {
+        Hit hit;
+        ASSERT_TRUE(scene.Intersect({xs[i], y, 100.0}, kDown, 1000.0, &hit));
+        EXPECT_TRUE(hit.on_part);
+        EXPECT_NEAR(hit.point_in_world.z(), hs[i] + lift, 1e-5) << "bow " << bow;
+        EXPECT_NEAR(scene.TrueHeightAt(xs[i], y), hs[i] + lift, 1e-5) << "bow " << bow;
+      }
+    }
+  }
+  StageOptions stage;
+  stage.plate_bow_mm = 1.0;
+  PartOptions part;
+  part.position_mm = {50.0, 0.0};
+  Scene scene(part, stage);
+  // Under the centre the dome stands at -1 50^2 / 200^2 = -0.0625 and falls by 2.5e-3 per mm
+  // in x: the 15 mm step's top, 7.5 mm to +x of the centre, stands that much lower (the tilt
+  // moves the top sideways by 15 mm x 2.5e-3 too: 1e-4 of slope's worth of height).
+  Hit hit;
+  ASSERT_TRUE(scene.Intersect({57.5, 0.0, 100.0}, kDown, 1000.0, &hit));
+  EXPECT_NEAR(hit.point_in_world.z(), 15.0 - 0.0625 - 7.5 * 2.5e-3, 2e-4);
+  EXPECT_NEAR(hit.normal.x(), 2.5e-3, 1e-6);
+}
+
 }  // namespace
 }  // namespace insitu::sim

@@ -61,8 +61,16 @@ class Scene {
 
   void set_stage_z(double z_mm) { stage_z_ = z_mm; }
   double stage_z() const { return stage_z_; }
-  // Height of the part's top above the plate at a world xy (0 off the part): for tests.
+  // Height of the surface at a world xy above the stage's plane (stage_z): the part's top on
+  // its footprint, else the plate's top (0 on a flat plate).
   double TrueHeightAt(double x_mm, double y_mm) const;
+  // True where a world xy lies on the part's footprint.
+  bool OnPart(double x_mm, double y_mm) const;
+  // The plate's top at a world xy above the stage's plane: its bow (StageOptions::plate_bow_mm),
+  // 0 at the plate's centre.
+  double PlateWarp(double x_mm, double y_mm) const {
+    return plate_curvature_ * (x_mm * x_mm + y_mm * y_mm);
+  }
   // How far a world xy is from the part's outline (mm, either side; infinity without a part):
   // where the part's top has a wall a ray may graze.
   double DistanceToPartEdge(double x_mm, double y_mm) const;
@@ -90,6 +98,10 @@ class Scene {
                      Hit* hit) const;
   bool InsidePart(const Eigen::Vector3d& p_local) const;
   Eigen::Vector3d ToLocal(const Eigen::Vector3d& p) const;
+  // The height of the plane the part is seated on (its base) above the stage's plane at a world
+  // xy, and the part's frame at that point of it.
+  double BaseHeight(double x_mm, double y_mm) const;
+  Eigen::Vector3d BaseToLocal(double x_mm, double y_mm) const;
   Eigen::Vector3d DirToLocal(const Eigen::Vector3d& d) const;
   Eigen::Vector3d DirToWorld(const Eigen::Vector3d& d) const;
   bool ClipToBox(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double* t0,
@@ -108,7 +120,14 @@ class Scene {
   Eigen::Isometry3d world_from_board_ = Eigen::Isometry3d::Identity();
   std::unique_ptr<PartShape> shape_;
   double stage_z_;
-  double cos_rot_, sin_rot_;
+  // The plate's bow as a curvature: PlateWarp = plate_curvature_ (x^2 + y^2).
+  double plate_curvature_ = 0.0;
+  // The part seated on the plate: its base plane is z = stage_z_ + seat_lift_ + seat_slope_ .
+  // (xy - position); part_rotation_ turns the part's frame into the world's (its rotation about
+  // z, then the base's tilt).
+  double seat_lift_ = 0.0;
+  Eigen::Vector2d seat_slope_ = Eigen::Vector2d::Zero();
+  Eigen::Matrix3d part_rotation_ = Eigen::Matrix3d::Identity();
 };
 
 }  // namespace insitu::sim

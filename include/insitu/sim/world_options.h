@@ -228,6 +228,12 @@ struct StageOptions {
   // Same depth law as the part's marked_reflectance.
   double plate_marked_reflectance = 4.0;
   double plate_size_mm = 400.0;
+  // The plate's bow (mm): how far the midpoints of its edges stand below its centre (a dome;
+  // negative: a dish), a spherical cap over the plate, its centre at the stage's height. A part
+  // rests on it rigidly: on its crown (a dome) or on its footprint's farthest points (a dish),
+  // tilted by the slope under its centre. A machined tooling plate is flat to ~0.05 mm over
+  // 400 mm; one that was heated unevenly, welded on or dropped bows by a millimetre or more.
+  double plate_bow_mm = 0.0;
   // The stage's travel against its commands (its leadscrew's pitch error), parts per million:
   // commanded z lands at z (1 + scale_error_ppm 1e-6). Its encoder counts the same screw, so
   // the position it reports is the commanded one.
