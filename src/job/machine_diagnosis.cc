@@ -477,10 +477,11 @@ struct Structure {
   double noise_mm = 0.0;      // from neighbours' differences
   double structure_mm = 0.0;  // rms beyond the noise
   double p = 1.0;
-  std::string where;  // the observations holding the largest residuals
-  // Significant at the channel's share of kAlpha, and at least half the noise.
+  std::string where;    // the observations holding the largest residuals
+  bool tested = false;  // enough neighbours (10 pairs) to say anything
+  // Significant at the share of kAlpha of one of `channels` tested, and at least half the noise.
   bool Flagged(int channels) const {
-    return p < kAlpha / channels && structure_mm >= 0.5 * noise_mm;
+    return tested && p < kAlpha / std::max(1, channels) && structure_mm >= 0.5 * noise_mm;
   }
 };
 
@@ -489,6 +490,7 @@ Structure PairStructure(const std::vector<double>& r,
                         const std::vector<std::pair<int, int>>& pairs) {
   Structure s;
   if (pairs.size() < 10) return s;
+  s.tested = true;
   double prod = 0, diff2 = 0, sq = 0;
   for (const auto& [i, j] : pairs) {
     prod += r[i] * r[j];
@@ -611,18 +613,14 @@ Structure SpotStructure(const std::vector<Observation>& observed,
 struct CellStructure {
   Structure heights, spots;
   // A channel says nothing without enough neighbours: the test is over those that do.
-  int channels() const { return (heights.where.empty() ? 0 : 1) + (spots.where.empty() ? 0 : 1); }
-  bool Flagged() const {
-    const int n = std::max(1, channels());
-    return heights.Flagged(n) || spots.Flagged(n);
-  }
+  int channels() const { return (heights.tested ? 1 : 0) + (spots.tested ? 1 : 0); }
+  bool Flagged() const { return heights.Flagged(channels()) || spots.Flagged(channels()); }
   // The smaller p, Bonferroni-adjusted over the channels tested.
   double p() const { return std::min(1.0, std::max(1, channels()) * std::min(heights.p, spots.p)); }
   std::string where() const {
-    const int n = std::max(1, channels());
     std::string w;
     for (const Structure* c : {&heights, &spots}) {
-      if (c->Flagged(n)) w += (w.empty() ? "" : "; ") + c->where;
+      if (c->Flagged(channels())) w += (w.empty() ? "" : "; ") + c->where;
     }
     return w;
   }

@@ -95,7 +95,7 @@ Result<Frame> SimWorld::GrabCoaxial(double exposure_us) {
           // difference.
           p += slope * (top - (centre.point_in_world.z() - plate_z));
           top = scene_->TrueHeightAt(p.x(), p.y());
-          const bool on_part = top > 0.0;
+          const bool on_part = scene_->OnPart(p.x(), p.y());
           // The part's reflectance over the pixel's footprint (a reticle's 9 um lines are
           // under two pixels wide: sampling their centres would put them on the pixel grid;
           // the triangle of one pixel's half-width: scene.h).

@@ -123,8 +123,8 @@ bool SimWorld::SurfaceBlocks(const Eigen::Vector3d& from, const Eigen::Vector3d&
   const bool near_block =
       b.present && std::hypot(from.x() - b.position_mm[0], from.y() - b.position_mm[1]) <
                        0.75 * b.plate_mm + block_reach;
-  const double tallest = near_block ? std::max(scene_->part_max_height(), block_top)
-                                    : scene_->part_max_height();
+  const double tallest = near_block ? std::max(scene_->part_top_above_stage(), block_top)
+                                    : scene_->part_top_above_stage();
   const double reach = (tallest + 1.0) * horizontal / d.z() + 1.0;
   const bool near_edge = near_block || scene_->DistanceToPartEdge(from.x(), from.y()) < reach;
   const bool near_marks = marks_->MarkedNear(from.x(), from.y(), 1.0);
@@ -201,7 +201,7 @@ Result<SimWorld::ProfileShot> SimWorld::GrabProfile() {
     // tilts it by a few hundredths): its normal is taken as up, and nothing can hide it.
     // Near: within a wall's height (plus margin) of it, farther than the fan (+-16 deg) or the
     // camera (25 deg) can look past one.
-    const double wall_reach = scene_->part_max_height() + 3.0;
+    const double wall_reach = scene_->part_top_above_stage() + 3.0;
     const double block_reach =
         options_.block.plate_thickness_mm + options_.block.height_mm + 3.0;
     const bool rough = marks_->MarkedNear(p.x(), p.y(), 1.0) ||

@@ -204,6 +204,7 @@ Scene::Scene(const PartOptions& part, const StageOptions& stage)
   plate_curvature_ = -stage.plate_bow_mm / (half * half);
   const double rot = part.rotation_deg * M_PI / 180.0;
   part_rotation_ = Eigen::AngleAxisd(rot, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  part_top_above_stage_ = shape_ ? shape_->max_height() : 0.0;
   if (!shape_ || plate_curvature_ == 0.0) return;
   // A rigid part on a bowed plate rests on the plane that supports it from below. The bow is
   // quadratic, so on a dome (curvature < 0) that is the plate's tangent plane under the part's
@@ -213,17 +214,19 @@ Scene::Scene(const PartOptions& part, const StageOptions& stage)
   const double x0 = part.position_mm[0], y0 = part.position_mm[1];
   double reach2 = 0.0;
   if (plate_curvature_ > 0.0) {
-    const Eigen::Vector2d he = shape_->half_extent();
+    const Eigen::Vector2d box = shape_->half_extent();
     constexpr int kSteps = 200;
     for (int j = 0; j <= kSteps; ++j) {
       for (int i = 0; i <= kSteps; ++i) {
-        const double u = he.x() * (2.0 * i / kSteps - 1.0), v = he.y() * (2.0 * j / kSteps - 1.0);
+        const double u = box.x() * (2.0 * i / kSteps - 1.0), v = box.y() * (2.0 * j / kSteps - 1.0);
         if (shape_->SignedDistance2D(u, v) <= 0.0) reach2 = std::max(reach2, u * u + v * v);
       }
     }
   }
   seat_lift_ = PlateWarp(x0, y0) + plate_curvature_ * reach2;
   seat_slope_ = 2.0 * plate_curvature_ * Eigen::Vector2d(x0, y0);
+  const Eigen::Vector2d he = shape_->half_extent();
+  part_top_above_stage_ = shape_->max_height() + seat_lift_ + seat_slope_.norm() * he.norm();
   const Eigen::Vector3d base_normal =
       Eigen::Vector3d(-seat_slope_.x(), -seat_slope_.y(), 1.0).normalized();
   part_rotation_ =
@@ -239,8 +242,19 @@ double Scene::BaseHeight(double x_mm, double y_mm) const {
   return seat_lift_ +
          seat_slope_.dot(Eigen::Vector2d(x_mm - part_.position_mm[0], y_mm - part_.position_mm[1]));
 }
-Eigen::Vector3d Scene::BaseToLocal(double x_mm, double y_mm) const {
-  return ToLocal({x_mm, y_mm, stage_z_ + BaseHeight(x_mm, y_mm)});
+Eigen::Vector3d Scene::TopToLocal(double x_mm, double y_mm, double* height_mm) const {
+  // Down the vertical through (x, y) from the base to the top: each pass moves to where the
+  // top is under the last point's local xy (a tilt of a few mrad moves that xy by the height
+  // change times the tilt, so three passes settle to well under a nanometre on a flat top and
+  // to the top's slope times that on a curved one).
+  double h = BaseHeight(x_mm, y_mm);
+  Eigen::Vector3d q = ToLocal({x_mm, y_mm, stage_z_ + h});
+  for (int pass = 0; pass < 3 && shape_; ++pass) {
+    h += (shape_->Top(q.x(), q.y()) - q.z()) / part_rotation_(2, 2);
+    q = ToLocal({x_mm, y_mm, stage_z_ + h});
+  }
+  if (height_mm != nullptr) *height_mm = h;
+  return q;
 }
 Eigen::Vector3d Scene::DirToLocal(const Eigen::Vector3d& d) const {
   return part_rotation_.transpose() * d;
@@ -254,26 +268,26 @@ bool Scene::InsidePart(const Eigen::Vector3d& q) const {
 }
 
 double Scene::TrueHeightAt(double x_mm, double y_mm) const {
-  if (!OnPart(x_mm, y_mm)) return PlateWarp(x_mm, y_mm);
-  const Eigen::Vector3d q = BaseToLocal(x_mm, y_mm);
-  // The base's height here plus the top above it (the part's tilt, a few mrad at most, changes
-  // its top's height by the square of it).
-  return BaseHeight(x_mm, y_mm) + shape_->Top(q.x(), q.y());
+  if (!shape_) return PlateWarp(x_mm, y_mm);
+  double h = 0.0;
+  const Eigen::Vector3d q = TopToLocal(x_mm, y_mm, &h);
+  return shape_->SignedDistance2D(q.x(), q.y()) <= 0.0 ? h : PlateWarp(x_mm, y_mm);
 }
 
 bool Scene::OnPart(double x_mm, double y_mm) const {
   if (!shape_) return false;
-  const Eigen::Vector3d q = BaseToLocal(x_mm, y_mm);
+  const Eigen::Vector3d q = TopToLocal(x_mm, y_mm, nullptr);
   return shape_->SignedDistance2D(q.x(), q.y()) <= 0.0;
 }
 
 double Scene::DistanceToPartEdge(double x_mm, double y_mm) const {
   if (!shape_) return std::numeric_limits<double>::infinity();
-  const Eigen::Vector3d q = BaseToLocal(x_mm, y_mm);
+  const Eigen::Vector3d q = TopToLocal(x_mm, y_mm, nullptr);
   return std::abs(shape_->SignedDistance2D(q.x(), q.y()));
 }
 
 double Scene::part_max_height() const { return shape_ ? shape_->max_height() : 0.0; }
+double Scene::part_top_above_stage() const { return part_top_above_stage_; }
 
 int Scene::grid_plate_crosses_per_side() const {
   if (part_.kind != "grid_plate") return -1;
@@ -283,12 +297,13 @@ int Scene::grid_plate_crosses_per_side() const {
 
 Eigen::Vector2d Scene::GridCrossInWorld(int i, int j) const {
   const double x = i * part_.grid_plate_pitch_mm, y = j * part_.grid_plate_pitch_mm;
-  const Eigen::Vector3d r = part_rotation_ * Eigen::Vector3d(x, y, 0.0);
+  // On the glass's top face (the chrome), which a tilted plate moves sideways too.
+  const Eigen::Vector3d r = part_rotation_ * Eigen::Vector3d(x, y, part_.grid_plate_thickness_mm);
   return {part_.position_mm[0] + r.x(), part_.position_mm[1] + r.y()};
 }
 
 double Scene::PartAlbedoAt(double x_mm, double y_mm, double half_mm) const {
-  const Eigen::Vector3d q = BaseToLocal(x_mm, y_mm);
+  const Eigen::Vector3d q = TopToLocal(x_mm, y_mm, nullptr);
   return LocalAlbedo(q.x(), q.y(), half_mm);
 }
 
@@ -495,15 +510,27 @@ bool Scene::Intersect(const Eigen::Vector3d& origin, const Eigen::Vector3d& dire
   bool found = false;
   // The plate (an infinite plane clipped to its size).
   if (direction.z() < -1e-12) {
-    double t = (stage_z_ - origin.z()) / direction.z();
-    Eigen::Vector3d p = origin + direction * t;
-    // A bowed plate: the height under the ray's point, again, until it holds. Each pass shrinks
-    // the error by the plate's slope times the ray's inclination (< 1e-2 on any plate a part
-    // can stand on): four passes leave well under a nanometre.
-    for (int pass = 0; pass < 4 && plate_curvature_ != 0.0; ++pass) {
-      t = (stage_z_ + PlateWarp(p.x(), p.y()) - origin.z()) / direction.z();
-      p = origin + direction * t;
+    // The plate's top z = stage_z + k (x^2 + y^2) along the ray: a t^2 + b t + c = 0, the
+    // nearer root ahead (a flat plate: a = 0, one root).
+    const double k = plate_curvature_;
+    const Eigen::Vector2d o2 = origin.head<2>(), d2 = direction.head<2>();
+    const double a = -k * d2.squaredNorm();
+    const double b = direction.z() - 2.0 * k * o2.dot(d2);
+    const double c = origin.z() - stage_z_ - k * o2.squaredNorm();
+    double t = -1.0;
+    if (a == 0.0) {
+      t = -c / b;
+    } else {
+      const double disc = b * b - 4.0 * a * c;
+      if (disc >= 0.0) {
+        // The stable pair of roots (no cancellation between b and the root).
+        const double q = -0.5 * (b + std::copysign(std::sqrt(disc), b));
+        const double r1 = q / a, r2 = q != 0.0 ? c / q : -1.0;
+        const double lo = std::min(r1, r2), hi = std::max(r1, r2);
+        t = lo > 0.0 ? lo : hi;
+      }
     }
+    const Eigen::Vector3d p = origin + direction * t;
     const double half = 0.5 * stage_.plate_size_mm;
     if (t > 0 && t <= t_max && std::abs(p.x()) <= half && std::abs(p.y()) <= half) {
       hit->t = t;

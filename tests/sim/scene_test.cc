@@ -191,6 +191,11 @@ TEST(Scene, APartRestsRigidlyOnABowedPlate) {
   ASSERT_TRUE(scene.Intersect({57.5, 0.0, 100.0}, kDown, 1000.0, &hit));
   EXPECT_NEAR(hit.point_in_world.z(), 15.0 - 0.0625 - 7.5 * 2.5e-3, 2e-4);
   EXPECT_NEAR(hit.normal.x(), 2.5e-3, 1e-6);
+  // The height by world xy is the top's on the same vertical (not the base's point under it,
+  // which the tilt moves 15 mm x 2.5e-3 sideways), to the ray's 1e-6.
+  EXPECT_NEAR(scene.TrueHeightAt(57.5, 0.0), hit.point_in_world.z(), 1e-6);
+  EXPECT_TRUE(scene.OnPart(57.5, 0.0));
+  EXPECT_FALSE(scene.OnPart(61.0, 0.0));
 }
 
 }  // namespace

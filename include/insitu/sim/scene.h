@@ -74,8 +74,11 @@ class Scene {
   // How far a world xy is from the part's outline (mm, either side; infinity without a part):
   // where the part's top has a wall a ray may graze.
   double DistanceToPartEdge(double x_mm, double y_mm) const;
-  // The part's highest point above the plate (0 without a part).
+  // The part's highest point above its base (0 without a part).
   double part_max_height() const;
+  // A bound on the part's highest point above the stage's plane, its seat on a bowed plate
+  // included.
+  double part_top_above_stage() const;
   // Reflectance of the part's top at a world xy (on the part's footprint) as a pixel sees it:
   // the part's albedo, or for the grid plate its chrome crosses on glass, weighted over the
   // pixel's footprint by a separable triangle of half-width `half_mm` (0: the point). The
@@ -99,9 +102,11 @@ class Scene {
   bool InsidePart(const Eigen::Vector3d& p_local) const;
   Eigen::Vector3d ToLocal(const Eigen::Vector3d& p) const;
   // The height of the plane the part is seated on (its base) above the stage's plane at a world
-  // xy, and the part's frame at that point of it.
+  // xy.
   double BaseHeight(double x_mm, double y_mm) const;
-  Eigen::Vector3d BaseToLocal(double x_mm, double y_mm) const;
+  // The part's frame where the vertical through a world xy meets the part's top (its local z
+  // is the top's there), and that point's height above the stage's plane.
+  Eigen::Vector3d TopToLocal(double x_mm, double y_mm, double* height_mm) const;
   Eigen::Vector3d DirToLocal(const Eigen::Vector3d& d) const;
   Eigen::Vector3d DirToWorld(const Eigen::Vector3d& d) const;
   bool ClipToBox(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double* t0,
@@ -128,6 +133,7 @@ class Scene {
   double seat_lift_ = 0.0;
   Eigen::Vector2d seat_slope_ = Eigen::Vector2d::Zero();
   Eigen::Matrix3d part_rotation_ = Eigen::Matrix3d::Identity();
+  double part_top_above_stage_ = 0.0;
 };
 
 }  // namespace insitu::sim

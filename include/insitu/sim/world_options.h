@@ -229,10 +229,13 @@ struct StageOptions {
   double plate_marked_reflectance = 4.0;
   double plate_size_mm = 400.0;
   // The plate's bow (mm): how far the midpoints of its edges stand below its centre (a dome;
-  // negative: a dish), a spherical cap over the plate, its centre at the stage's height. A part
+  // negative: a dish), its centre at the stage's height. A part
   // rests on it rigidly: on its crown (a dome) or on its footprint's farthest points (a dish),
   // tilted by the slope under its centre. A machined tooling plate is flat to ~0.05 mm over
   // 400 mm; one that was heated unevenly, welded on or dropped bows by a millimetre or more.
+  // (A paraboloid: a sphere's cap to within the bow's square over the radius.) The board laid
+  // on the plate for field calibration and the profiler's calibration block stand on the
+  // stage's plane, not on the bow.
   double plate_bow_mm = 0.0;
   // The stage's travel against its commands (its leadscrew's pitch error), parts per million:
   // commanded z lands at z (1 + scale_error_ppm 1e-6). Its encoder counts the same screw, so
