@@ -347,6 +347,7 @@ Result<calib::HeightLookup> CalibrateHeights(CalibrateRun& run) {
                    static_cast<double>(zs.size() * xs.size()));
   int done = 0;
   vision::Image background, subtracted;  // the room's light on the plate at this height
+  vision::Image plane;                   // a colour frame in the pointer's channel
   for (double z : zs) {
     const Status moved = machine.stage->MoveTo(z);
     if (!moved.ok()) return PhaseFailure(moved, "height calibration: ");
@@ -369,7 +370,9 @@ Result<calib::HeightLookup> CalibrateHeights(CalibrateRun& run) {
         if (!sub.ok()) return PhaseFailure(sub, "height calibration: ");
         view = subtracted.view();
       }
-      const Status ex = extractor.Extract(view, &stripe);
+      auto stripe_plane = vision::StripePlane(view, stripe_options.colour_channel, &plane);
+      if (!stripe_plane.ok()) return PhaseFailure(stripe_plane.status(), "height calibration: ");
+      const Status ex = extractor.Extract(*stripe_plane, &stripe);
       if (!ex.ok()) return PhaseFailure(ex);
       calib::HeightObservation o{x, z, {}};
       const double b = frame->binning;

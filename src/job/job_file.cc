@@ -118,6 +118,11 @@ void ReadStripeOptions(ConfigReader& r, vision::StripeOptions* o) {
   r.Read("second_peak_ratio", &o->second_peak_ratio);
   r.Read("saturation_level", &o->saturation_level);
   r.Read("subtract_threshold", &o->subtract_threshold);
+  std::string channel = "red";
+  r.ReadEnum("colour_channel", &channel, {"red", "green", "blue"});
+  o->colour_channel = channel == "green"  ? vision::ColourChannel::kGreen
+                      : channel == "blue" ? vision::ColourChannel::kBlue
+                                          : vision::ColourChannel::kRed;
   if (r.ok()) r.FailFromValidate(o->Validate());
 }
 

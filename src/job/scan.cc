@@ -104,6 +104,7 @@ struct FrameProcessor::Impl {
   std::vector<int> index;
   vision::Image background;  // empty: none
   vision::Image subtracted;  // the frame less the background, reused
+  vision::Image plane;       // a colour frame reduced to the pointer's channel, reused
 };
 
 Result<std::unique_ptr<FrameProcessor>> FrameProcessor::Create(
@@ -147,6 +148,10 @@ Status FrameProcessor::Process(const Frame& frame, int i, ScanOutput* out) {
     if (!subtracted.ok()) return subtracted.Prefixed("line " + std::to_string(i));
     view = m.subtracted.view();
   }
+  // A colour camera: the pointer's channel (the room's light subtracted sample by sample first).
+  auto channel = vision::StripePlane(view, m.stripe_options.colour_channel, &m.plane);
+  if (!channel.ok()) return channel.status().Prefixed("line " + std::to_string(i));
+  view = *channel;
   if (!m.extractor || m.extractor_bit_depth != frame.bit_depth) {
     // The scan's gray levels are 8-bit ones: the same light on a 12-bit camera.
     m.extractor = std::make_unique<vision::StripeExtractor>(
@@ -360,6 +365,7 @@ Result<double> AutoExpose(hw::Machine& machine, const ScanOptions& options,
   std::unique_ptr<vision::StripeExtractor> extractor;
   int extractor_bits = 0;
   vision::StripeResult stripe;
+  vision::Image plane;  // a colour frame in the pointer's channel
   const PointerOff pointer_off{machine.scanner.get()};
   double exposure_ms = options.exposure_ms;
   const double kMinMs = 0.02, kMaxMs = std::min(1000.0, 8.0 * options.exposure_ms);
@@ -388,7 +394,10 @@ Result<double> AutoExpose(hw::Machine& machine, const ScanOptions& options,
         extractor_bits = frame->bit_depth;
       }
       max_value = frame->max_value();
-      INSITU_RETURN_IF_ERROR(extractor->Extract(vision::ViewOf(*frame), &stripe));
+      INSITU_ASSIGN_OR_RETURN(
+          const vision::ImageView view,
+          vision::StripePlane(vision::ViewOf(*frame), so.colour_channel, &plane));
+      INSITU_RETURN_IF_ERROR(extractor->Extract(view, &stripe));
       for (size_t k = 0; k < stripe.status.size(); ++k) {
         if (stripe.status[k] == vision::StripeStatus::kValid) peaks.push_back(stripe.peak[k]);
         if (stripe.status[k] == vision::StripeStatus::kSaturated) ++saturated;

@@ -10,16 +10,28 @@
 namespace insitu::vision {
 namespace {
 
+// Averaging and subtracting act on each sample alone, so a colour frame (a mosaic, or three
+// samples a pixel) is handled as the gray image of its samples, and keeps its format.
+ImageView Samples(const ImageView& image) {
+  ImageView s = image;
+  s.width = image.width * SamplesPerPixel(image.format);
+  s.format = PixelFormat::kMono;
+  return s;
+}
+
 cv::Mat MatOf(const ImageView& image) {
-  return cv::Mat(image.height, image.width, image.is_8bit() ? CV_8UC1 : CV_16UC1,
-                 const_cast<void*>(image.data), image.stride_bytes);
+  const ImageView s = Samples(image);
+  return cv::Mat(s.height, s.width, s.is_8bit() ? CV_8UC1 : CV_16UC1, const_cast<void*>(s.data),
+                 s.stride_bytes);
 }
 
 Status CheckSame(const ImageView& a, const ImageView& b, const std::string& what) {
-  if (a.width != b.width || a.height != b.height || a.bit_depth != b.bit_depth) {
-    return InvalidArgument(what + std::to_string(b.width) + " x " + std::to_string(b.height) +
-                           " at " + std::to_string(b.bit_depth) + " bits differs from " +
-                           std::to_string(a.width) + " x " + std::to_string(a.height) + " at " +
+  if (a.width != b.width || a.height != b.height || a.bit_depth != b.bit_depth ||
+      a.format != b.format) {
+    return InvalidArgument(what + std::to_string(b.width) + " x " + std::to_string(b.height) + " " +
+                           PixelFormatName(b.format) + " at " + std::to_string(b.bit_depth) +
+                           " bits differs from " + std::to_string(a.width) + " x " +
+                           std::to_string(a.height) + " " + PixelFormatName(a.format) + " at " +
                            std::to_string(a.bit_depth) + " bits");
   }
   return Status::Ok();
@@ -29,7 +41,8 @@ void Resize(const ImageView& like, Image* out) {
   out->width = like.width;
   out->height = like.height;
   out->bit_depth = like.bit_depth;
-  out->bytes.resize(static_cast<size_t>(like.width) * like.height * (like.is_8bit() ? 1 : 2));
+  out->format = like.format;
+  out->bytes.resize(static_cast<size_t>(like.width) * like.height * like.bytes_per_pixel());
 }
 
 }  // namespace
@@ -38,10 +51,10 @@ Result<Image> AverageFrames(const std::vector<ImageView>& frames) {
   if (frames.empty()) return InvalidArgument("background: no frame to average");
   for (size_t i = 0; i < frames.size(); ++i) {
     const std::string what = "background: frame " + std::to_string(i) + ": ";
-    INSITU_RETURN_IF_ERROR(CheckImageView(frames[i], what));
+    INSITU_RETURN_IF_ERROR(CheckImageView(Samples(frames[i]), what));
     INSITU_RETURN_IF_ERROR(CheckSame(frames[0], frames[i], what));
   }
-  cv::Mat sum = cv::Mat::zeros(frames[0].height, frames[0].width, CV_32F);
+  cv::Mat sum = cv::Mat::zeros(frames[0].height, Samples(frames[0]).width, CV_32F);
   for (const ImageView& f : frames) cv::accumulate(MatOf(f), sum);
   Image out;
   Resize(frames[0], &out);
@@ -53,8 +66,8 @@ Result<Image> AverageFrames(const std::vector<ImageView>& frames) {
 
 Status SubtractBackground(const ImageView& frame, const ImageView& background, Image* out,
                           int saturation_level) {
-  INSITU_RETURN_IF_ERROR(CheckImageView(frame, "background: frame: "));
-  INSITU_RETURN_IF_ERROR(CheckImageView(background, "background: "));
+  INSITU_RETURN_IF_ERROR(CheckImageView(Samples(frame), "background: frame: "));
+  INSITU_RETURN_IF_ERROR(CheckImageView(Samples(background), "background: "));
   INSITU_RETURN_IF_ERROR(CheckSame(frame, background, "background: "));
   Resize(frame, out);
   const ImageView v = out->view();

@@ -19,7 +19,7 @@
 namespace insitu::vision {
 
 // invalid_argument, prefixed with `what`, for an empty image, a bit depth other than 8 or
-// 10..16 (in 16-bit samples), or a stride shorter than a row.
+// 10..16 (in 16-bit samples), a colour format, or a stride shorter than a row.
 inline Status CheckImageView(const ImageView& image, const std::string& what) {
   if (image.data == nullptr || image.width <= 0 || image.height <= 0) {
     return InvalidArgument(what + "empty image");
@@ -27,6 +27,11 @@ inline Status CheckImageView(const ImageView& image, const std::string& what) {
   if (image.bit_depth != 8 && (image.bit_depth < 10 || image.bit_depth > 16)) {
     return InvalidArgument(what + "bit depth " + std::to_string(image.bit_depth) +
                            " not supported (8, or 10..16 in 16-bit samples)");
+  }
+  if (image.format != PixelFormat::kMono) {
+    return InvalidArgument(what + "a " + PixelFormatName(image.format) +
+                           " frame: this reads one gray plane; reduce the frame to a colour "
+                           "channel first (vision::ReduceToChannel)");
   }
   const size_t row = static_cast<size_t>(image.width) * (image.is_8bit() ? 1 : 2);
   if (image.stride_bytes < row) {

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <numeric>
 
+#include "vision/image_cv.h"
+
 namespace insitu::vision {
 namespace {
 
@@ -54,7 +56,8 @@ Status HatchMeasureOptions::Validate() const {
 
 Result<HatchMeasurement> MeasureHatch(const ImageView& im, const HatchMeasureOptions& o) {
   INSITU_RETURN_IF_ERROR(o.Validate());
-  if (im.data == nullptr || im.width < 4 || im.height < 4) return InvalidArgument("empty image");
+  INSITU_RETURN_IF_ERROR(CheckImageView(im, "hatch: "));
+  if (im.width < 4 || im.height < 4) return InvalidArgument("hatch: image under 4 x 4 pixels");
   // Directions in the image (pixels per um): galvo g -> (du, -dv) =
   // R(-rotation) g.
   const double rot = o.camera_rotation_deg * M_PI / 180.0, th = o.hatch_angle_deg * M_PI / 180.0;

@@ -1127,6 +1127,11 @@ Status CheckImage(const ImageView& image) {
   if (image.bit_depth != 8 && (image.bit_depth < 10 || image.bit_depth > 16)) {
     return InvalidArgument("bit_depth must be 8 or 10..16, got " + std::to_string(image.bit_depth));
   }
+  if (image.format != PixelFormat::kMono) {
+    return InvalidArgument(std::string("a ") + PixelFormatName(image.format) +
+                           " frame: the stripe extractor reads one gray plane; reduce the frame "
+                           "to the laser's colour channel first (vision::StripePlane)");
+  }
   const size_t row_bytes = static_cast<size_t>(image.width) * (image.is_8bit() ? 1 : 2);
   if (image.stride_bytes < row_bytes) {
     return InvalidArgument("stride_bytes " + std::to_string(image.stride_bytes) +
@@ -1154,6 +1159,12 @@ Status StripeExtractor::Extract(const ImageView& image, StripeResult* result) {
     ExtractTyped<uint16_t>(image, direction, options_, scratch_->w16, result);
   }
   return Status::Ok();
+}
+
+Result<ImageView> StripePlane(const ImageView& image, ColourChannel channel, Image* scratch) {
+  if (image.format == PixelFormat::kMono) return image;
+  INSITU_RETURN_IF_ERROR(ReduceToChannel(image, channel, scratch));
+  return scratch->view();
 }
 
 StripeDirection EstimateStripeDirection(const ImageView& image) {

@@ -2,10 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
-
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+
+#include "vision/image_cv.h"
 
 namespace insitu::vision {
 namespace {
@@ -41,9 +42,7 @@ Status ChessboardOptions::Validate() const {
 Result<std::vector<Eigen::Vector2d>> FindChessboard(const ImageView& image,
                                                     const ChessboardOptions& options) {
   INSITU_RETURN_IF_ERROR(options.Validate());
-  if (image.data == nullptr || image.width <= 0 || image.height <= 0) {
-    return InvalidArgument("empty image");
-  }
+  INSITU_RETURN_IF_ERROR(CheckImageView(image, "chessboard: "));
   const cv::Mat gray = ToMat8(image);
   std::vector<cv::Point2f> corners;
   bool found = false;
@@ -87,6 +86,8 @@ Status SpotOptions::Validate() const {
 
 Result<Spot> FindSpot(const ImageView& with, const ImageView& without, const SpotOptions& o) {
   INSITU_RETURN_IF_ERROR(o.Validate());
+  INSITU_RETURN_IF_ERROR(CheckImageView(with, "spot: with the spot: "));
+  INSITU_RETURN_IF_ERROR(CheckImageView(without, "spot: without it: "));
   if (with.width != without.width || with.height != without.height ||
       with.bit_depth != without.bit_depth) {
     return InvalidArgument("spot frames differ in size or depth");

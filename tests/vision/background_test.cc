@@ -1,15 +1,17 @@
 // The room's light taken off a frame (vision/background.h): the mean of the pointer-off frames,
 // the subtraction floored at 0 with full scale kept, and what it does for a stripe beside a lit
 // surface.
+#include "insitu/vision/background.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <random>
+#include <string>
 #include <vector>
 
-#include "insitu/vision/background.h"
 #include "insitu/vision/stripe.h"
 
 namespace insitu::vision {
@@ -120,6 +122,37 @@ TEST(Background, ALitSurfaceBesideTheStripeNoLongerPullsItsCentre) {
   // still valid: the failure the subtraction removes.
   ASSERT_EQ(raw.status[u], StripeStatus::kValid);
   EXPECT_GT(std::abs(raw.v(u) - reference), 0.1) << raw.v(u) << " vs " << reference;
+}
+
+// A colour frame (three samples a pixel, or a mosaic) is averaged and subtracted sample by
+// sample and keeps its format, so the pointer's channel is taken from it afterwards.
+TEST(Background, AColourFrameIsTakenSampleBySampleAndKeepsItsFormat) {
+  Image frame, room;
+  for (Image* im : {&frame, &room}) {
+    im->width = 4;
+    im->height = 3;
+    im->format = PixelFormat::kRgb;
+  }
+  frame.bytes.resize(4 * 3 * 3);
+  room.bytes.resize(4 * 3 * 3);
+  for (size_t i = 0; i < frame.bytes.size(); ++i) {
+    room.bytes[i] = static_cast<uint8_t>(10 + i % 3);  // the room: a little more blue
+    frame.bytes[i] = static_cast<uint8_t>(50 + i);     // the pointer and the room
+  }
+  auto mean = AverageFrames({room.view(), room.view()});
+  ASSERT_TRUE(mean.ok()) << mean.status().ToString();
+  EXPECT_EQ(mean->format, PixelFormat::kRgb);
+  EXPECT_EQ(mean->bytes, room.bytes);
+  Image out;
+  ASSERT_TRUE(SubtractBackground(frame.view(), mean->view(), &out).ok());
+  EXPECT_EQ(out.format, PixelFormat::kRgb);
+  ASSERT_EQ(out.bytes.size(), frame.bytes.size());
+  for (size_t i = 0; i < out.bytes.size(); ++i) EXPECT_EQ(out.bytes[i], 40 + i - i % 3);
+  // A mono background for a colour frame is another camera's: refused, naming both.
+  const Image gray = Filled(4, 3, 8, 10);
+  const Status mixed = SubtractBackground(frame.view(), gray.view(), &out);
+  EXPECT_FALSE(mixed.ok());
+  EXPECT_NE(mixed.message().find("RGB"), std::string::npos) << mixed.message();
 }
 
 }  // namespace

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "insitu/core/status.h"
+#include "insitu/vision/colour.h"
 #include "insitu/vision/image.h"
 
 namespace insitu::vision {
@@ -61,6 +62,8 @@ struct StripeOptions {
   int saturation_level = 0;
   // Weight of pixel i in the centroid: gray value g_i (seed eq. 7) or g_i - K.
   bool subtract_threshold = false;
+  // A colour camera's frames are read in this channel (ReduceToStripePlane): the pointer's.
+  ColourChannel colour_channel = ColourChannel::kRed;
 
   // Names the first invalid field ("threshold_ratio must be in (0, 1), got 1.5").
   // These options with their gray levels (min_peak, min_contrast) given on the 8-bit scale,
@@ -107,6 +110,10 @@ class StripeExtractor {
   StripeOptions options_;
   std::unique_ptr<Scratch> scratch_;
 };
+
+// The plane the extractor reads: a mono view as it is, a colour one reduced to `channel` in
+// `scratch` (ReduceToChannel), which the returned view then shows. Errors: ReduceToChannel's.
+Result<ImageView> StripePlane(const ImageView& image, ColourChannel channel, Image* scratch);
 
 // Direction used by kAuto: principal axis of the pixels above half the image maximum, on a
 // subsampled copy. Returns kColumns when no bright pixel exists.
