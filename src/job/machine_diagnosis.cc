@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <numeric>
@@ -253,10 +254,14 @@ class CellModel : public fit::GroupModel {
           break;
         case kSpotX:
         case kSpotY: {
-          // The spot is focused on the plate (commanded at the stage's height): it lands where
-          // the field puts its command.
+          // The spot is focused where the stage says the plate is (commanded at the stage's
+          // height z): it lands where the field puts its command, moved along the chief ray
+          // from the exit pupil (H above the field) to where the plate really is (z_stage):
+          // by (H - z_stage) / (H - z), which a stage screw's error makes differ from 1.
           const double z = passes_[o.pass].stage_z_mm;
-          const Vector2d landed = (scale + focus * z) * o.command + shift;
+          const double pupil = PupilHeight(theta);
+          const Vector2d landed =
+              (scale + focus * z) * (pupil - z_stage) / (pupil - z) * o.command + shift;
           const int axis = o.kind == kSpotX ? 0 : 1;
           r = points[k][axis] - landed[axis];
           break;
@@ -267,6 +272,15 @@ class CellModel : public fit::GroupModel {
     return true;
   }
 
+  // The exit pupil's height above the field as calibrated, and as theta has it (light_plane's
+  // pupil term).
+  double NominalPupilHeight() const {
+    return cal_.head.measured ? cal_.head.model.built.exit_pupil_height_mm
+                              : cal_.galvo.pivot_height_mm;
+  }
+  double PupilHeight(const std::vector<double>& theta) const {
+    return NominalPupilHeight() + theta[Begin(kLightPlane) + 1];
+  }
 
   // The points of `use` in the galvo frame for parameters theta.
   bool Points(const std::vector<double>& theta, const std::vector<int>& use,
@@ -298,8 +312,7 @@ class CellModel : public fit::GroupModel {
     const double tilt = theta[Begin(kLightPlane)] * 1e-3;
     const double pupil = theta[Begin(kLightPlane) + 1];  // mm of exit pupil height
     // Chief rays lean by x / L from a pupil L above the field; from L + dL by x dL / L^2 less.
-    const double height = cal_.head.measured ? cal_.head.model.built.exit_pupil_height_mm
-                                             : cal_.galvo.pivot_height_mm;
+    const double height = NominalPupilHeight();
     const double stage_scale = two_heights_ ? theta[Begin(kStageScale)] * 1e-3 : 0.0;
     std::map<std::pair<int, int>, Eigen::Vector4d> planes;
     out->resize(use.size());
@@ -515,13 +528,31 @@ Structure PairStructure(const std::vector<double>& r,
   return s;
 }
 
-// The tenth of the residuals largest in size (at least one).
-std::vector<int> Largest(const std::vector<double>& r) {
-  std::vector<int> idx(r.size());
-  std::iota(idx.begin(), idx.end(), 0);
-  std::sort(idx.begin(), idx.end(), [&](int a, int b) { return std::abs(r[a]) > std::abs(r[b]); });
-  idx.resize(std::min(idx.size(), std::max<size_t>(1, r.size() / 10)));
-  return idx;
+// PairStructure of `r` over `pairs`, with `where` naming the tenth of the residuals largest in
+// size (at least one) by the span of their places: extent(k) = (x_lo, x_hi, y_lo, y_hi), mm.
+Structure Located(const std::vector<double>& r, const std::vector<std::pair<int, int>>& pairs,
+                  const std::function<Eigen::Vector4d(int)>& extent, const char* what,
+                  const char* at) {
+  Structure s = PairStructure(r, pairs);
+  if (!s.tested) return s;
+  std::vector<int> top(r.size());
+  std::iota(top.begin(), top.end(), 0);
+  std::sort(top.begin(), top.end(), [&](int a, int b) { return std::abs(r[a]) > std::abs(r[b]); });
+  top.resize(std::max<size_t>(1, r.size() / 10));
+  Eigen::Vector4d span(1e300, -1e300, 1e300, -1e300);
+  for (int k : top) {
+    const Eigen::Vector4d e = extent(k);
+    span = Eigen::Vector4d(std::min(span[0], e[0]), std::max(span[1], e[1]),
+                           std::min(span[2], e[2]), std::max(span[3], e[3]));
+  }
+  char b[240];
+  std::snprintf(b, sizeof b,
+                "%s: %.1f um rms beyond %.1f um of noise, largest (%.1f um and below) %s x "
+                "%.1f..%.1f mm, y %.1f..%.1f mm",
+                what, s.structure_mm * 1e3, s.noise_mm * 1e3, std::abs(r[top[0]]) * 1e3, at,
+                span[0], span[1], span[2], span[3]);
+  s.where = b;
+  return s;
 }
 
 // The heights' bins along their lines (the gauge's ends are not bins along a line).
@@ -542,26 +573,12 @@ Structure LineStructure(const std::vector<Observation>& observed,
       pairs.push_back({static_cast<int>(k), static_cast<int>(k + 1)});
     }
   }
-  Structure s = PairStructure(r, pairs);
-  if (pairs.size() < 10) return s;
-  const std::vector<int> top = Largest(r);
-  double x_lo = 1e300, x_hi = -1e300, y_lo = 1e300, y_hi = -1e300;
-  for (int k : top) {
+  const auto extent = [&](int k) {
     const Observation& o = obs[k];
     const double x = passes[o.pass].lines[o.line].first.x();
-    x_lo = std::min(x_lo, x);
-    x_hi = std::max(x_hi, x);
-    y_lo = std::min(y_lo, o.bin * bin_mm);
-    y_hi = std::max(y_hi, (o.bin + 1) * bin_mm);
-  }
-  char b[200];
-  std::snprintf(
-      b, sizeof b,
-      "heights: %.1f um rms beyond %.1f um of noise, largest (%.1f um and below) on lines "
-      "at x %.1f..%.1f mm, y %.1f..%.1f mm",
-      s.structure_mm * 1e3, s.noise_mm * 1e3, std::abs(r[top[0]]) * 1e3, x_lo, x_hi, y_lo, y_hi);
-  s.where = b;
-  return s;
+    return Eigen::Vector4d(x, x, o.bin * bin_mm, (o.bin + 1) * bin_mm);
+  };
+  return Located(r, pairs, extent, "heights", "on lines at");
 }
 
 // The pointer's spots along the columns of the grid they were parked on (each pass, each axis,
@@ -588,25 +605,11 @@ Structure SpotStructure(const std::vector<Observation>& observed,
       pairs.push_back({static_cast<int>(k), static_cast<int>(k + 1)});
     }
   }
-  Structure s = PairStructure(r, pairs);
-  if (pairs.size() < 10) return s;
-  const std::vector<int> top = Largest(r);
-  double x_lo = 1e300, x_hi = -1e300, y_lo = 1e300, y_hi = -1e300;
-  for (int k : top) {
+  const auto extent = [&](int k) {
     const Vector2d& c = observed[spots[k]].command;
-    x_lo = std::min(x_lo, c.x());
-    x_hi = std::max(x_hi, c.x());
-    y_lo = std::min(y_lo, c.y());
-    y_hi = std::max(y_hi, c.y());
-  }
-  char b[200];
-  std::snprintf(b, sizeof b,
-                "spots: %.1f um rms beyond %.1f um of noise, largest (%.1f um and below) at x "
-                "%.1f..%.1f mm, y %.1f..%.1f mm",
-                s.structure_mm * 1e3, s.noise_mm * 1e3, std::abs(r[top[0]]) * 1e3, x_lo, x_hi, y_lo,
-                y_hi);
-  s.where = b;
-  return s;
+    return Eigen::Vector4d(c.x(), c.x(), c.y(), c.y());
+  };
+  return Located(r, pairs, extent, "spots", "at");
 }
 
 // Both channels' structure: the heights along their lines and the spots along their columns.
