@@ -249,6 +249,15 @@ Eigen::Vector3d Scene::TopToLocal(double x_mm, double y_mm, double* height_mm) c
   // to the top's slope times that on a curved one).
   double h = BaseHeight(x_mm, y_mm);
   Eigen::Vector3d q = ToLocal({x_mm, y_mm, stage_z_ + h});
+  if (seat_slope_.isZero() && shape_) {
+    // Upright (a flat plate, or a dome's crown under the part's centre): the vertical is the
+    // part's own, and one look at the top is exact. The profiler's shadow march asks this at
+    // every 5 um, so the passes below would cost it several times over.
+    const double top = shape_->Top(q.x(), q.y());
+    q.z() = top;
+    if (height_mm != nullptr) *height_mm = h + top;
+    return q;
+  }
   for (int pass = 0; pass < 3 && shape_; ++pass) {
     h += (shape_->Top(q.x(), q.y()) - q.z()) / part_rotation_(2, 2);
     q = ToLocal({x_mm, y_mm, stage_z_ + h});

@@ -1,8 +1,8 @@
-// The whole cell's diagnosis in randomised trials (slow, ~90 minutes on two free cores): after the
-// default cell is calibrated and its baseline recorded, each machine change is hidden in the world
-// at a random size and sign, ten times, with fresh noise each time, and must be named first in at
-// least 9 of 10; the unchanged cell must name nothing in 10 of 10, and a change no effect of the
-// library describes (the galvos' bearings worn, the camera's lens decentred, the plate domed)
+// The whole cell's diagnosis in randomised trials (slow, about an hour on two free cores): after
+// the default cell is calibrated and its baseline recorded, each machine change is hidden in the
+// world at a random size and sign, ten times, with fresh noise each time, and must be named first
+// in at least 9 of 10; the unchanged cell must name nothing in 10 of 10, and a change no effect of
+// the library describes (the galvos' bearings worn, the camera's lens decentred, the plate domed)
 // must be reported unexplained, with nothing named, in 10 of 10. Each effect's trials cover each of
 // its parameters (the camera's six axes, both mirrors), the off-library ones several kinds.
 //

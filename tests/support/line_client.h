@@ -22,15 +22,15 @@ class Client {
     socket_.connect({asio::ip::make_address("127.0.0.1"), static_cast<unsigned short>(port)});
   }
   void SendRaw(const std::string& bytes) { asio::write(socket_, asio::buffer(bytes)); }
-  // The next line, without its newline; "" when the connection closed (or timed out). Events
-  // that arrived while a call waited for its reply come first.
-  std::string ReadLine() {
+  // The next line, without its newline; "" when the connection closed (or nothing came within
+  // timeout_ms). Events that arrived while a call waited for its reply come first.
+  std::string ReadLine(int timeout_ms = 10000) {
     if (!pending_.empty()) {
       std::string line = pending_.front();
       pending_.pop_front();
       return line;
     }
-    return NextLine();
+    return NextLine(timeout_ms);
   }
   // Sends a request and returns its reply; events that come first are kept for ReadLine.
   nlohmann::json Call(const std::string& line) {
@@ -49,9 +49,9 @@ class Client {
   bool Closed() { return ReadLine().empty(); }
 
  private:
-  // One line from the socket, waiting at most 10 s for it (poll: asio's blocking reads ignore
-  // SO_RCVTIMEO); "" on close or timeout.
-  std::string NextLine() {
+  // One line from the socket, waiting at most timeout_ms for it (poll: asio's blocking reads
+  // ignore SO_RCVTIMEO); "" on close or timeout.
+  std::string NextLine(int timeout_ms = 10000) {
     for (;;) {
       const auto begin = asio::buffers_begin(buffer_.data());
       const auto end = asio::buffers_end(buffer_.data());
@@ -62,7 +62,7 @@ class Client {
         return line;
       }
       pollfd p{socket_.native_handle(), POLLIN, 0};
-      if (poll(&p, 1, 10000) <= 0) return "";
+      if (poll(&p, 1, timeout_ms) <= 0) return "";
       asio::error_code ec;
       const size_t n = socket_.read_some(buffer_.prepare(4096), ec);
       if (ec || n == 0) return "";
@@ -83,11 +83,13 @@ inline bool Pong(Client& c) {
 
 // Reads lines until a job event with a final status (done, faulted, cancelled), of job `id`
 // when given; every line read is kept in *events when given. Null if the connection closed
-// or went silent for 10 s.
+// or went silent for 120 s: a job's phase may send no progress for many seconds when the
+// machine is busy (a profiler job beside an integration test under ctest -j2 was silent for
+// over 10 s), and a hung daemon still fails the test well within ctest's timeout.
 inline nlohmann::json WaitForJobEnd(Client& c, const std::string& id = "",
                                     std::vector<nlohmann::json>* events = nullptr) {
   for (int k = 0; k < 100000; ++k) {
-    const std::string line = c.ReadLine();
+    const std::string line = c.ReadLine(120000);
     if (line.empty()) return nullptr;
     const auto j = nlohmann::json::parse(line, nullptr, false);
     if (events != nullptr && j.is_object()) events->push_back(j);
