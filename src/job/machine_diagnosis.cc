@@ -255,13 +255,15 @@ class CellModel : public fit::GroupModel {
         case kSpotX:
         case kSpotY: {
           // The spot is focused where the stage says the plate is (commanded at the stage's
-          // height z): it lands where the field puts its command, moved along the chief ray
-          // from the exit pupil (H above the field) to where the plate really is (z_stage):
-          // by (H - z_stage) / (H - z), which a stage screw's error makes differ from 1.
+          // height z). The controller aims along the chief ray from the exit pupil as
+          // calibrated (H0 above the field): the field's command x0 = x H0 / (H0 - z). The
+          // beam leaves the pupil where it really is (H, light_plane's pupil term) and meets
+          // the plate where it really is (z_stage): x0 (H - z_stage) / H. Both differ from the
+          // commands' only with a pupil moved or a stage screw off.
           const double z = passes_[o.pass].stage_z_mm;
-          const double pupil = PupilHeight(theta);
-          const Vector2d landed =
-              (scale + focus * z) * (pupil - z_stage) / (pupil - z) * o.command + shift;
+          const double h0 = NominalPupilHeight(), h = PupilHeight(theta);
+          const double lean = h0 * (h - z_stage) / ((h0 - z) * h);
+          const Vector2d landed = (scale + focus * z) * lean * o.command + shift;
           const int axis = o.kind == kSpotX ? 0 : 1;
           r = points[k][axis] - landed[axis];
           break;
