@@ -295,7 +295,6 @@ double Scene::DistanceToPartEdge(double x_mm, double y_mm) const {
   return std::abs(shape_->SignedDistance2D(q.x(), q.y()));
 }
 
-double Scene::part_max_height() const { return shape_ ? shape_->max_height() : 0.0; }
 double Scene::part_top_above_stage() const { return part_top_above_stage_; }
 
 int Scene::grid_plate_crosses_per_side() const {

@@ -10,17 +10,9 @@
 namespace insitu::vision {
 namespace {
 
-// Averaging and subtracting act on each sample alone, so a colour frame (a mosaic, or three
-// samples a pixel) is handled as the gray image of its samples, and keeps its format.
-ImageView Samples(const ImageView& image) {
-  ImageView s = image;
-  s.width = image.width * SamplesPerPixel(image.format);
-  s.format = PixelFormat::kMono;
-  return s;
-}
-
+// Averaging and subtracting act on each sample alone, so a colour frame keeps its format.
 cv::Mat MatOf(const ImageView& image) {
-  const ImageView s = Samples(image);
+  const ImageView s = SamplesOf(image);
   return cv::Mat(s.height, s.width, s.is_8bit() ? CV_8UC1 : CV_16UC1, const_cast<void*>(s.data),
                  s.stride_bytes);
 }
@@ -51,10 +43,10 @@ Result<Image> AverageFrames(const std::vector<ImageView>& frames) {
   if (frames.empty()) return InvalidArgument("background: no frame to average");
   for (size_t i = 0; i < frames.size(); ++i) {
     const std::string what = "background: frame " + std::to_string(i) + ": ";
-    INSITU_RETURN_IF_ERROR(CheckImageView(Samples(frames[i]), what));
+    INSITU_RETURN_IF_ERROR(CheckImageView(SamplesOf(frames[i]), what));
     INSITU_RETURN_IF_ERROR(CheckSame(frames[0], frames[i], what));
   }
-  cv::Mat sum = cv::Mat::zeros(frames[0].height, Samples(frames[0]).width, CV_32F);
+  cv::Mat sum = cv::Mat::zeros(frames[0].height, SamplesOf(frames[0]).width, CV_32F);
   for (const ImageView& f : frames) cv::accumulate(MatOf(f), sum);
   Image out;
   Resize(frames[0], &out);
@@ -66,8 +58,8 @@ Result<Image> AverageFrames(const std::vector<ImageView>& frames) {
 
 Status SubtractBackground(const ImageView& frame, const ImageView& background, Image* out,
                           int saturation_level) {
-  INSITU_RETURN_IF_ERROR(CheckImageView(Samples(frame), "background: frame: "));
-  INSITU_RETURN_IF_ERROR(CheckImageView(Samples(background), "background: "));
+  INSITU_RETURN_IF_ERROR(CheckImageView(SamplesOf(frame), "background: frame: "));
+  INSITU_RETURN_IF_ERROR(CheckImageView(SamplesOf(background), "background: "));
   INSITU_RETURN_IF_ERROR(CheckSame(frame, background, "background: "));
   Resize(frame, out);
   const ImageView v = out->view();

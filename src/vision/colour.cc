@@ -77,18 +77,6 @@ void Reduce(const ImageView& in, int colour, Image* out) {
 
 }  // namespace
 
-const char* ColourChannelName(ColourChannel channel) {
-  switch (channel) {
-    case ColourChannel::kRed:
-      return "red";
-    case ColourChannel::kGreen:
-      return "green";
-    case ColourChannel::kBlue:
-      return "blue";
-  }
-  return "unknown";
-}
-
 Result<ColourChannel> ChannelOfWavelength(double nm) {
   if (!(nm >= 350.0 && nm <= 1100.0)) {
     return InvalidArgument("laser wavelength " + std::to_string(nm) +

@@ -41,6 +41,15 @@ inline Status CheckImageView(const ImageView& image, const std::string& what) {
   return Status::Ok();
 }
 
+// A colour view's samples as a gray view (each row's samples side by side), for what acts on
+// each sample alone (the room's light averaged and subtracted; a colour frame's checks).
+inline ImageView SamplesOf(const ImageView& image) {
+  ImageView s = image;
+  s.width = image.width * SamplesPerPixel(image.format);
+  s.format = PixelFormat::kMono;
+  return s;
+}
+
 // Writes `image` to `path`, the format from the extension (image_io.cc). Errors: device_error
 // naming the file; OpenCV's exceptions end here.
 Status WriteImage(const cv::Mat& image, const std::string& path);

@@ -74,8 +74,6 @@ class Scene {
   // How far a world xy is from the part's outline (mm, either side; infinity without a part):
   // where the part's top has a wall a ray may graze.
   double DistanceToPartEdge(double x_mm, double y_mm) const;
-  // The part's highest point above its base (0 without a part).
-  double part_max_height() const;
   // A bound on the part's highest point above the stage's plane, its seat on a bowed plate
   // included.
   double part_top_above_stage() const;

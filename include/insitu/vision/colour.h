@@ -18,8 +18,6 @@ namespace insitu::vision {
 
 enum class ColourChannel { kRed, kGreen, kBlue };
 
-const char* ColourChannelName(ColourChannel channel);
-
 // The filter a laser line of this wavelength passes best: red from 590 nm (a pointer's 635-690
 // nm, an IR source's visible aiming diode), green from 490 nm (520 and 532 nm lines), blue
 // below (405-450 nm lines). Errors: invalid_argument outside 350..1100 nm, where no colour
