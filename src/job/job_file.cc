@@ -117,7 +117,7 @@ void ReadStripeOptions(ConfigReader& r, vision::StripeOptions* o) {
   r.Read("min_peak_separation_px", &o->min_peak_separation_px);
   r.Read("second_peak_ratio", &o->second_peak_ratio);
   r.Read("saturation_level", &o->saturation_level);
-  r.Read("subtract_threshold", &o->subtract_threshold);
+  r.Read("expected_width_px", &o->expected_width_px);
   std::string channel = "red";
   r.ReadEnum("colour_channel", &channel, {"red", "green", "blue"});
   o->colour_channel = channel == "green"  ? vision::ColourChannel::kGreen

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "insitu/calib/calibration.h"
 #include "insitu/core/log.h"
@@ -119,8 +120,17 @@ Result<ScanOutput> Scan(ScanMachine& up, const ScanJobSpec& spec, const RunOptio
       spec.scan.line_count(), spec.scan.x_start_mm, spec.scan.x_end_mm, spec.scan.line_spacing_mm,
       spec.scan.speed_mm_per_s, spec.scan.exposure_ms, up.calibration.produced_by);
   PhaseProgress progress(options, "scan", "lines", spec.scan.line_count());
+  ScanOptions scan = spec.scan;
+  if (spec.save_frames) {
+    scan.frames_dir = (std::filesystem::path(options.out_dir) / "frames").string();
+    std::error_code error;
+    std::filesystem::create_directories(scan.frames_dir, error);
+    if (error) {
+      return PhaseFailure(DeviceError("cannot create " + scan.frames_dir + ": " + error.message()));
+    }
+  }
   auto scanned = RunScan(
-      up.machine, spec.scan, spec.extraction, up.calibration,
+      up.machine, scan, spec.extraction, up.calibration,
       [&](int done, int) { progress.Update(done); }, options.cancel);
   if (!scanned.ok()) return PhaseFailure(scanned.status());
   return scanned;
@@ -138,6 +148,14 @@ Status SaveScan(const ScanOutput& scanned, const ScanJobSpec& spec, const std::s
 
   auto& m = report->metrics;
   m["points"] = static_cast<double>(cloud.size());
+  if (!cloud.empty()) {  // the centres' uncertainty from the local noise, typical point
+    std::vector<float> sigma;
+    sigma.reserve(cloud.size());
+    for (const geometry::CloudPoint& p : cloud) sigma.push_back(p.center_sigma_px);
+    std::nth_element(sigma.begin(), sigma.begin() + static_cast<ptrdiff_t>(sigma.size() / 2),
+                     sigma.end());
+    m["center_sigma_px_median"] = sigma[sigma.size() / 2];
+  }
   m["lines"] = st.lines;
   m["method"] = spec.method;
   ReportScanLight(st, report);

@@ -2,10 +2,12 @@
 
 #include <algorithm>
 #include <chrono>
-#include <limits>
 #include <cmath>
 #include <condition_variable>
+#include <cstdio>
 #include <deque>
+#include <filesystem>
+#include <limits>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -13,6 +15,8 @@
 
 #include "insitu/geometry/triangulation.h"
 #include "insitu/vision/background.h"
+#include "insitu/vision/canvas.h"
+#include "insitu/vision/image_io.h"
 
 namespace insitu::job {
 
@@ -89,7 +93,172 @@ vision::StripeOptions Resolved(const vision::StripeOptions& stripe, const ScanOp
   return out;
 }
 
+// The point of a light plane (camera frame coefficients) at galvo (y, z): the sheet's x there;
+// a plane parallel to x (none in practice): `x_fallback`.
+Eigen::Vector3d SheetPoint(const Eigen::Vector4d& plane_in_camera,
+                           const Eigen::Isometry3d& camera_from_galvo, double y, double z,
+                           double x_fallback) {
+  // The plane in the galvo frame: n . p + d = 0 with p = (x, y, z).
+  const Eigen::Vector3d n = camera_from_galvo.linear().transpose() * plane_in_camera.head<3>();
+  const double d =
+      plane_in_camera.head<3>().dot(camera_from_galvo.translation()) + plane_in_camera(3);
+  const double x = std::abs(n.x()) > 1e-9 ? -(n.y() * y + n.z() * z + d) / n.x() : x_fallback;
+  return Eigen::Vector3d(x, y, z);
+}
+
+// Where line i's stripe can lie in a frame (binned pixels, the frame's region at offset_x,
+// offset_y): its light plane over the height range, along the line, projected: per scan line of
+// the extraction's direction, the span between the plane's cuts at the range's two heights,
+// plus a margin for the pointer's landing off the calibrated plane on a real head (a few
+// 0.1 mm: 8 full-sensor pixels) and the stripe's half width. A reflection or a lit surface
+// outside it is never the stripe.
+vision::StripeWindow LineWindowOnPlane(const ScanOptions& o, const calib::CalibrationSet& cal,
+                                       const calib::CameraIntrinsics& cam,
+                                       vision::StripeDirection dir, int i, int width, int height,
+                                       int offset_x, int offset_y,
+                                       const geometry::PlaneInCamera& plane) {
+  const bool columns = dir == vision::StripeDirection::kColumns;
+  const int lines = columns ? width : height;
+  vision::StripeWindow window;
+  window.lo.assign(static_cast<size_t>(lines), std::numeric_limits<float>::infinity());
+  window.hi.assign(static_cast<size_t>(lines), -std::numeric_limits<float>::infinity());
+  const Eigen::Isometry3d& camera_from_galvo = cal.galvo.camera_from_galvo;
+  const double margin = 2.0 + 8.0 / o.binning;
+  constexpr int kSamples = 200;
+  auto corner = [&](int k, double z) -> std::optional<Eigen::Vector2d> {
+    const double y = o.y_start_mm + (o.y_end_mm - o.y_start_mm) * k / kSamples;
+    const Eigen::Vector3d p =
+        camera_from_galvo * SheetPoint(plane.coeffs, camera_from_galvo, y, z, o.line_x(i));
+    if (!(p.z() > 0)) return std::nullopt;
+    return cam.Project(p) - Eigen::Vector2d(offset_x, offset_y);
+  };
+  for (int k = 0; k < kSamples; ++k) {
+    // The patch of the sheet between y_k and y_k+1 over the height range, as a box.
+    double umin = INFINITY, umax = -INFINITY, vmin = INFINITY, vmax = -INFINITY;
+    bool seen = false;
+    for (int kk : {k, k + 1}) {
+      for (double z : {o.height_range_mm[0], o.height_range_mm[1]}) {
+        const auto px = corner(kk, z);
+        if (!px) continue;
+        seen = true;
+        umin = std::min(umin, px->x()), umax = std::max(umax, px->x());
+        vmin = std::min(vmin, px->y()), vmax = std::max(vmax, px->y());
+      }
+    }
+    if (!seen) continue;
+    const double line_lo = (columns ? umin : vmin) - margin,
+                 line_hi = (columns ? umax : vmax) + margin;
+    const double along_lo = (columns ? vmin : umin) - margin,
+                 along_hi = (columns ? vmax : umax) + margin;
+    const int first = std::max(0, static_cast<int>(std::floor(line_lo)));
+    const int last = std::min(lines - 1, static_cast<int>(std::ceil(line_hi)));
+    for (int l = first; l <= last; ++l) {
+      window.lo[l] = std::min(window.lo[l], static_cast<float>(along_lo));
+      window.hi[l] = std::max(window.hi[l], static_cast<float>(along_hi));
+    }
+  }
+  // Scan lines the sheet never crosses: no stripe can be there (lo > hi).
+  return window;
+}
+
 }  // namespace
+
+namespace {
+
+// line_NNNN.png: the frame (a mosaic's raw samples; none for RGB); line_NNNN_stripe.png: the plane
+// the extraction read over the span of its window, with the window (blue), its valid centres
+// (green) and, just above the window, each refused scan line's status (red saturated, magenta two
+// peaks, orange too wide, yellow bad shape).
+Status SaveLineFrames(const std::string& dir, int i, const vision::ImageView& frame,
+                      const vision::ImageView& plane, const vision::StripeResult& stripe,
+                      const vision::StripeWindow& window) {
+  char name[32];
+  std::snprintf(name, sizeof(name), "line_%04d", i);
+  const std::filesystem::path base = std::filesystem::path(dir) / name;
+  // A mosaic as its raw samples (what the sensor gave); a three-sample frame only as the plane
+  // below.
+  vision::ImageView raw = frame;
+  if (IsBayer(raw.format)) raw.format = PixelFormat::kMono;
+  if (raw.format == PixelFormat::kMono) {
+    INSITU_RETURN_IF_ERROR(vision::WritePng(base.string() + ".png", raw));
+  }
+  INSITU_ASSIGN_OR_RETURN(vision::Canvas canvas, vision::Canvas::FromGray(plane));
+  const bool columns = stripe.direction == vision::StripeDirection::kColumns;
+  auto dot = [&](double along_line, double across, int rgb) {
+    const Eigen::Vector2d p =
+        columns ? Eigen::Vector2d(along_line, across) : Eigen::Vector2d(across, along_line);
+    canvas.Line(p, p, vision::Pen{rgb, 1, false});
+  };
+  for (size_t k = 0; k < stripe.status.size(); ++k) {
+    const double line = static_cast<double>(k);
+    if (k < window.lo.size() && window.lo[k] <= window.hi[k]) {
+      dot(line, window.lo[k], 0x3060FF);
+      dot(line, window.hi[k], 0x3060FF);
+    }
+    int rgb = -1;
+    switch (stripe.status[k]) {
+      case vision::StripeStatus::kValid:
+        dot(line, stripe.center[k], 0x00FF00);
+        break;
+      case vision::StripeStatus::kNone:
+        break;
+      case vision::StripeStatus::kSaturated:
+        rgb = 0xFF0000;
+        break;
+      case vision::StripeStatus::kTwoPeaks:
+        rgb = 0xFF00FF;
+        break;
+      case vision::StripeStatus::kTooWide:
+        rgb = 0xFF8000;
+        break;
+      case vision::StripeStatus::kBadShape:
+        rgb = 0xFFFF00;
+        break;
+    }
+    if (rgb >= 0) {  // just outside the window, or along the frame's edge
+      const bool in = k < window.lo.size() && window.lo[k] <= window.hi[k];
+      const double at = in ? std::max(0.0, window.lo[k] - 10.0) : 0.0;
+      for (int edge = 0; edge < 4; ++edge) dot(line, at + edge, rgb);
+    }
+  }
+  // The picture of the window's span (the rows the stripe may occupy, a margin around them).
+  int first = -1, last = -1;
+  float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+  for (size_t k = 0; k < window.lo.size(); ++k) {
+    if (!(window.lo[k] <= window.hi[k])) continue;
+    if (first < 0) first = static_cast<int>(k);
+    last = static_cast<int>(k);
+    lo = std::min(lo, window.lo[k]);
+    hi = std::max(hi, window.hi[k]);
+  }
+  if (first >= 0) {
+    constexpr int kMargin = 16;
+    const int lines = columns ? canvas.width() : canvas.height();
+    const int across = columns ? canvas.height() : canvas.width();
+    const int l0 = std::max(0, first - kMargin), l1 = std::min(lines, last + 1 + kMargin);
+    const int a0 = std::clamp(static_cast<int>(std::floor(lo)) - kMargin, 0, across);
+    const int a1 = std::clamp(static_cast<int>(std::ceil(hi)) + 1 + kMargin, 0, across);
+    if (l1 > l0 && a1 > a0) {
+      const vision::Canvas span = columns ? canvas.Region(l0, a0, l1 - l0, a1 - a0)
+                                          : canvas.Region(a0, l0, a1 - a0, l1 - l0);
+      return span.WritePng(base.string() + "_stripe.png");
+    }
+  }
+  return canvas.WritePng(base.string() + "_stripe.png");
+}
+
+}  // namespace
+
+vision::StripeWindow LineStripeWindow(const ScanOptions& o, const calib::CalibrationSet& cal,
+                                      vision::StripeDirection direction, int i, int width,
+                                      int height, int offset_x, int offset_y) {
+  const Eigen::Vector3d from(o.line_x(i), o.y_start_mm, o.focus_z_mm);
+  const Eigen::Vector3d to(o.line_x(i), o.y_end_mm, o.focus_z_mm);
+  const geometry::PlaneInCamera plane =
+      geometry::LineLightPlane(cal, from, to, 20.0, cal.galvo.camera_from_galvo);
+  return LineWindowOnPlane(o, cal, cal.camera.Binned(o.binning), direction, i, width, height,
+                           offset_x, offset_y, plane);
+}
 
 struct FrameProcessor::Impl {
   ScanOptions options;
@@ -158,10 +327,23 @@ Status FrameProcessor::Process(const Frame& frame, int i, ScanOutput* out) {
         m.stripe_options.ForBitDepth(frame.bit_depth));
     m.extractor_bit_depth = frame.bit_depth;
   }
+  // Seed 000 eq. (1)-(4): pixel -> normalised ray -> light plane -> galvo frame. On a measured
+  // head the plane follows the pointer's own chief rays (the head's scale, distortion and the
+  // pointer's offset included); otherwise the seed's plane through a, b, c. 20 mm: the height
+  // range of the parts a scan measures (the lookup's +-15 mm and more).
+  const geometry::PlaneInCamera plane =
+      geometry::LineLightPlane(calibration, from, to, 20.0, calibration.galvo.camera_from_galvo);
+  const vision::StripeWindow window =
+      LineWindowOnPlane(options, calibration, m.cam, m.stripe_options.direction, i, frame.width,
+                        frame.height, frame.offset_x, frame.offset_y, plane);
   const auto t0 = std::chrono::steady_clock::now();
-  INSITU_RETURN_IF_ERROR(m.extractor->Extract(view, &m.stripe));
+  INSITU_RETURN_IF_ERROR(m.extractor->Extract(view, &m.stripe, &window));
   out->stats.extract_time_ms +=
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  if (!options.frames_dir.empty()) {
+    INSITU_RETURN_IF_ERROR(
+        SaveLineFrames(options.frames_dir, i, vision::ViewOf(frame), view, m.stripe, window));
+  }
   const vision::StripeResult& stripe = m.stripe;
   std::vector<Eigen::Vector2d>& pixels = m.pixels;
   std::vector<int>& index = m.index;
@@ -175,19 +357,16 @@ Status FrameProcessor::Process(const Frame& frame, int i, ScanOutput* out) {
       case vision::StripeStatus::kSaturated: ++out->stats.saturated; continue;
       case vision::StripeStatus::kTwoPeaks: ++out->stats.two_peaks; continue;
       case vision::StripeStatus::kTooWide: ++out->stats.too_wide; continue;
+      case vision::StripeStatus::kBadShape:
+        ++out->stats.bad_shape;
+        continue;
     }
     // On the (binned) sensor: a region's frame starts at its offset.
     pixels.emplace_back(stripe.u(static_cast<int>(k)) + frame.offset_x,
                         stripe.v(static_cast<int>(k)) + frame.offset_y);
     index.push_back(static_cast<int>(k));
   }
-  // Seed 000 eq. (1)-(4): pixel -> normalised ray -> light plane -> galvo frame.
   const std::vector<Eigen::Vector2d> normalized = m.cam.Undistort(pixels);
-  // On a measured head the plane follows the pointer's own chief rays (the head's scale,
-  // distortion and the pointer's offset included); otherwise the seed's plane through a, b, c.
-  // 20 mm: the height range of the parts a scan measures (the lookup's +-15 mm and more).
-  const geometry::PlaneInCamera plane = geometry::LineLightPlane(
-      calibration, from, to, 20.0, calibration.galvo.camera_from_galvo);
   for (size_t k = 0; k < normalized.size(); ++k) {
     const auto p_cam = geometry::IntersectRayWithPlane(normalized[k], plane);
     if (!p_cam) {
@@ -200,6 +379,7 @@ Status FrameProcessor::Process(const Frame& frame, int i, ScanOutput* out) {
     cp.line = i;
     cp.pixel_u = static_cast<float>(pixels[k].x());
     cp.pixel_v = static_cast<float>(pixels[k].y());
+    cp.center_sigma_px = stripe.sigma_px[index[k]];
     if (options.method == 2) {
       cp.point_in_galvo = point.cast<float>();
       out->cloud_method1.push_back(cp);
@@ -286,16 +466,12 @@ std::pair<int, int> StripeBand(const ScanOptions& o, const vision::StripeOptions
     const Eigen::Vector3d to(o.line_x(i), o.y_end_mm, o.focus_z_mm);
     const Eigen::Vector4d plane =
         geometry::LineLightPlane(cal, from, to, z_reach, camera_from_galvo).coeffs;
-    // The plane in the galvo frame: n . p + d = 0 with p = (x, y, z).
-    const Eigen::Vector3d n = camera_from_galvo.linear().transpose() * plane.head<3>();
-    const double d = plane.head<3>().dot(camera_from_galvo.translation()) + plane(3);
     for (int k = 0; k <= 20; ++k) {
       const double y = o.y_start_mm + (o.y_end_mm - o.y_start_mm) * k / 20.0;
       for (int j = 0; j <= 4; ++j) {
         const double z = o.height_range_mm[0] + (o.height_range_mm[1] - o.height_range_mm[0]) * j / 4.0;
-        // Where the sheet is at (y, z); a plane parallel to x (none in practice): the line's x.
-        const double x = std::abs(n.x()) > 1e-9 ? -(n.y() * y + n.z() * z + d) / n.x() : o.line_x(i);
-        const Eigen::Vector3d p = camera_from_galvo * Eigen::Vector3d(x, y, z);
+        const Eigen::Vector3d p =
+            camera_from_galvo * SheetPoint(plane, camera_from_galvo, y, z, o.line_x(i));
         if (!(p.z() > 0)) continue;
         const Eigen::Vector2d px = cam.Project(p);
         if (!(px.x() >= 0 && px.x() < cam.width_px)) continue;

@@ -82,6 +82,7 @@ void ReportScanLight(const ScanStats& st, Report* report) {
   m["columns_saturated"] = static_cast<double>(st.saturated);
   m["columns_two_peaks"] = static_cast<double>(st.two_peaks);
   m["columns_too_wide"] = static_cast<double>(st.too_wide);
+  m["columns_bad_shape"] = static_cast<double>(st.bad_shape);
   m["exposure_ms"] = st.exposure_ms;
   m["auto_exposure_shots"] = st.auto_exposure_shots;
   m["pointer_speed_mm_per_s"] = st.pointer_speed_mm_per_s;

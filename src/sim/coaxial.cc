@@ -100,7 +100,7 @@ Result<Frame> SimWorld::GrabCoaxial(double exposure_us) {
           // under two pixels wide: sampling their centres would put them on the pixel grid;
           // the triangle of one pixel's half-width: scene.h).
           const double albedo = on_part ? scene_->PartAlbedoAt(p.x(), p.y(), px_mm)
-                                        : options_.stage.plate_albedo;
+                                        : scene_->PlateAlbedoAt(p.x(), p.y());
           const size_t i = static_cast<size_t>(v) * w + u;
           reflectance[i] = static_cast<float>(albedo * MarkFactor(p.x(), p.y(), 0.5 * px_mm, on_part));
           const double dz = std::abs(focus_z - (plate_z + top)) / ray.up.z();

@@ -160,7 +160,6 @@ Result<SimWorld::ProfileShot> SimWorld::GrabProfile() {
   std::normal_distribution<double> speckle(0.0, 1e-3 * o.noise_um);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   const double x0 = -0.5 * (o.points - 1) * o.x_spacing_mm;
-  const double stage_albedo = options_.stage.plate_albedo;
   for (int i = 0; i < o.points; ++i) {
     const Eigen::Vector3d base = s * Eigen::Vector3d(x0 + i * o.x_spacing_mm, 0.0, 0.0);
     // The surface along the sensor's z through this point: Newton on
@@ -220,8 +219,9 @@ Result<SimWorld::ProfileShot> SimWorld::GrabProfile() {
               : Eigen::Vector3d::UnitZ();
     const Eigen::Vector3d to_light = (emitter - p).normalized(), to_camera = (camera - p).normalized();
     const bool on_part = scene_->OnPart(p.x(), p.y());
-    const double albedo = (on_part ? scene_->PartAlbedoAt(p.x(), p.y()) : stage_albedo) *
-                          MarkFactor(p.x(), p.y(), 0.0, on_part);
+    const double albedo =
+        (on_part ? scene_->PartAlbedoAt(p.x(), p.y()) : scene_->PlateAlbedoAt(p.x(), p.y())) *
+        MarkFactor(p.x(), p.y(), 0.0, on_part);
     if (albedo * normal.dot(to_light) < o.min_signal || normal.dot(to_camera) <= 0.02) continue;
     if (rough && (SurfaceBlocks(p, emitter) || SurfaceBlocks(p, camera))) continue;
     double reading = z + speckle(profiler_rng_);

@@ -546,7 +546,7 @@ bool Scene::Intersect(const Eigen::Vector3d& origin, const Eigen::Vector3d& dire
       hit->normal =
           Eigen::Vector3d(-2.0 * plate_curvature_ * p.x(), -2.0 * plate_curvature_ * p.y(), 1.0)
               .normalized();
-      hit->albedo = stage_.plate_albedo;
+      hit->albedo = PlateAlbedoAt(p.x(), p.y());
       hit->on_part = false;
       t_max = t;
       found = true;
@@ -564,6 +564,14 @@ bool Scene::Intersect(const Eigen::Vector3d& origin, const Eigen::Vector3d& dire
     found = true;
   }
   return found;
+}
+
+double Scene::PlateAlbedoAt(double x_mm, double y_mm) const {
+  double albedo = stage_.plate_albedo;
+  for (const auto& l : stage_.labels) {  // the last label stuck there shows
+    if (std::abs(x_mm - l[0]) <= 0.5 * l[2] && std::abs(y_mm - l[1]) <= 0.5 * l[3]) albedo = l[4];
+  }
+  return albedo;
 }
 
 bool Scene::Blocked(const Eigen::Vector3d& from, const Eigen::Vector3d& to) const {

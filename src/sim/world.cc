@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <map>
 #include <thread>
 
 #include "insitu/core/log.h"
@@ -15,6 +16,15 @@
 
 namespace insitu::sim {
 namespace {
+
+// CameraOptions::pixel_format's names (validated there).
+PixelFormat PixelFormatOfName(const std::string& name) {
+  for (PixelFormat f : {PixelFormat::kBayerRG, PixelFormat::kBayerGR, PixelFormat::kBayerGB,
+                        PixelFormat::kBayerBG}) {
+    if (name == PixelFormatName(f)) return f;
+  }
+  return PixelFormat::kMono;
+}
 
 constexpr double kPlanck = 6.62607015e-34;   // J s
 constexpr double kLightSpeed = 299792458.0;  // m / s
@@ -678,6 +688,15 @@ Result<Frame> SimWorld::Expose(double t0, double* link_s_out) {
   if (!ambient_valid_ || ambient_stage_z_ != scene_->stage_z() || ambient_binning_ != binning_) {
     ambient_e_per_s_.assign(static_cast<size_t>(w) * h, 0.0f);
     const double qe = cam_opts.quantum_efficiency;
+    const Eigen::Vector3d lamp(light.lamp_position_mm[0], light.lamp_position_mm[1],
+                               light.lamp_position_mm[2]);
+    const double lamp_d2 = lamp.squaredNorm();  // lamp_lux is at the world's origin
+    const bool glow = light.interreflection;
+    const int glow_w = (w + kGlowStep - 1) / kGlowStep;
+    glow_grid_.assign(glow ? static_cast<size_t>(glow_w) * ((h + kGlowStep - 1) / kGlowStep) : 0,
+                      GlowPoint{});
+    const double pointer_photon_j =
+        kPlanck * kLightSpeed / (options_.scan_head.pointer.wavelength_nm * 1e-9);
     ParallelRows(h, [&](int v_begin, int v_end) {
       for (int v = v_begin; v < v_end; ++v) {
         for (int u = 0; u < w; ++u) {
@@ -717,8 +736,21 @@ Result<Frame> SimWorld::Expose(double t0, double* link_s_out) {
           }
           // Diffuse room light from above: surfaces facing up get all of it, walls half.
           const double shade = 0.5 + 0.5 * std::max(0.0, hit.normal.z());
-          const double sensor_lux =
-              albedo * light.ambient_lux * shade * aperture / M_PI * cam.Cos4(px);
+          double lux = light.ambient_lux * shade;
+          if (light.lamp_lux > 0) {  // a lamp: inverse square, cosine of incidence
+            const Eigen::Vector3d to_lamp = lamp - hit.point_in_world;
+            const double d2 = to_lamp.squaredNorm();
+            lux += light.lamp_lux * lamp_d2 / d2 *
+                   std::max(0.0, hit.normal.dot(to_lamp) / std::sqrt(d2));
+          }
+          const double sensor_lux = albedo * lux * aperture / M_PI * cam.Cos4(px);
+          if (glow && u % kGlowStep == 0 && v % kGlowStep == 0) {
+            GlowPoint& g = glow_grid_[static_cast<size_t>(v / kGlowStep) * glow_w + u / kGlowStep];
+            g.point = hit.point_in_world.cast<float>();
+            g.normal = hit.normal.cast<float>();
+            g.e_per_s_per_w_m2 = static_cast<float>(albedo / M_PI * aperture * cam.Cos4(px) *
+                                                    pixel_area_m2 * qe / pointer_photon_j);
+          }
           ambient_e_per_s_[static_cast<size_t>(v) * w + u] =
               static_cast<float>(sensor_lux * pixel_area_m2 * kWhitePhotonsPerLuxSecondM2 * qe);
         }
@@ -730,6 +762,7 @@ Result<Frame> SimWorld::Expose(double t0, double* link_s_out) {
   }
 
   std::vector<float> stripe(static_cast<size_t>(w) * h, 0.0f);
+  std::vector<float> glow;  // interreflection's electrons (no speckle: an extended source)
   truth_ = FrameTruth{};
   if (pointer_) {
     std::vector<BeamSample> samples;
@@ -750,34 +783,32 @@ Result<Frame> SimWorld::Expose(double t0, double* link_s_out) {
     // The pointer goes through the mirrors the marking laser's correction set: its own
     // alignment and lateral colour decide where it lands.
     const optics::BeamPath pointer_path = beam.Path();
-    for (const BeamSample& s : samples) {
-      const ChiefRay ray = true_optics_->Trace(s.angles, pointer_path);
-      const Eigen::Vector3d start = ray.AtHeight(scene_->stage_z() + kTraceStartHeightMm);
-      Hit hit;
-      if (!scene_->Intersect(start, -ray.up, 5000.0, &hit)) continue;
+    const PartOptions& part = options_.part;
+    const double lobe_rad = part.specular_lobe_deg * M_PI / 180.0;
+    // A spot of 1/e^2 radius w_mm where a beam of power_w along unit d meets `hit`, for dt_s,
+    // as the camera sees it; false if the camera cannot (the surface faces away, the part
+    // hides it, or it falls outside the sensor).
+    auto draw_spot = [&](const Hit& hit, const Eigen::Vector3d& d, double w_mm, double power_w,
+                         double dt_s, bool primary) {
       const Eigen::Vector3d& p = hit.point_in_world;
       const Eigen::Vector3d to_cam = cam_center - p;
-      if (hit.normal.dot(to_cam) <= 0.0) continue;  // surface faces away from the camera
+      if (hit.normal.dot(to_cam) <= 0.0) return false;  // surface faces away from the camera
       if (light.shadows && scene_->Blocked(p, cam_center)) {
-        ++truth_.occluded_samples;
-        continue;
+        if (primary) ++truth_.occluded_samples;
+        return false;
       }
       Eigen::Vector2d p0;
-      if (!cam.Project(p, &p0)) continue;
-      if (p0.x() < -10 || p0.y() < -10 || p0.x() > w + 10 || p0.y() > h + 10) continue;
-      // Beam radius where it meets the surface (Gaussian beam, waist at the focus height).
-      const double defocus_mm = (p.z() - s.focus_z_mm) / ray.up.z();
-      const double w_mm = w0_mm * std::sqrt(1.0 + std::pow(defocus_mm / rayleigh_mm, 2));
+      if (!cam.Project(p, &p0)) return false;
+      if (p0.x() < -10 || p0.y() < -10 || p0.x() > w + 10 || p0.y() > h + 10) return false;
       // Footprint on the tangent plane: rho^2 = s^T M s, M = I - g g^T (g: beam direction in
       // tangent coordinates), covariance (w^2/4) M^-1 = (w^2/4)(I + g g^T / (n.d)^2).
-      const Eigen::Vector3d d = -ray.up;
       const Eigen::Vector3d& n = hit.normal;
       Eigen::Vector3d t1v =
           n.cross(std::abs(n.z()) < 0.9 ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitX());
       t1v.normalize();
       const Eigen::Vector3d t2v = n.cross(t1v);
       const double cos_inc = std::abs(n.dot(d));
-      if (cos_inc < 1e-3) continue;
+      if (cos_inc < 1e-3) return false;
       const Eigen::Vector2d g(t1v.dot(d), t2v.dot(d));
       const Eigen::Matrix2d sigma_s =
           (w_mm * w_mm / 4.0) *
@@ -789,14 +820,28 @@ Result<Frame> SimWorld::Expose(double t0, double* link_s_out) {
       const Eigen::Matrix2d sigma_geom = j2 * sigma_s * j2.transpose();
       const Eigen::Matrix2d sigma = sigma_geom + blur_var * Eigen::Matrix2d::Identity();
       const Eigen::Matrix2d info = sigma.inverse();
+      // The surface's reflectance toward the camera (BRDF, 1/sr): diffuse albedo / pi, and on
+      // a glossy part its specular lobe about the mirror direction r, a Gaussian of the angle
+      // between r and the view, normalised so the lobe holds `specular` of the light.
+      double brdf = hit.albedo / M_PI;
+      if (hit.on_part && part.specular > 0) {
+        const Eigen::Vector3d r = d - 2.0 * d.dot(n) * n;
+        const Eigen::Vector3d view = to_cam.normalized();
+        const double cos_o = n.dot(view);
+        const double theta = std::acos(std::clamp(r.dot(view), -1.0, 1.0));
+        brdf += part.specular * std::exp(-0.5 * theta * theta / (lobe_rad * lobe_rad)) /
+                (2.0 * M_PI * lobe_rad * lobe_rad * std::max(cos_o, 0.05));
+      }
       // Peak radiance of the spot (W / m^2 / sr), lowered by the blur that spreads it.
       const double w_m = w_mm * 1e-3;
-      const double radiance = hit.albedo / M_PI * 2.0 * power_w / (M_PI * w_m * w_m) * cos_inc *
+      const double radiance = brdf * 2.0 * power_w / (M_PI * w_m * w_m) * cos_inc *
                               std::sqrt(sigma_geom.determinant() / sigma.determinant());
-      const double electrons_peak = radiance * aperture * cam.Cos4(p0) * pixel_area_m2 * s.dt_s *
+      const double electrons_peak = radiance * aperture * cam.Cos4(p0) * pixel_area_m2 * dt_s *
                                     cam_opts.quantum_efficiency / photon_j;
-      truth_.beam_pixels.push_back(p0);
-      truth_.beam_points_in_world.push_back(p);
+      if (primary) {
+        truth_.beam_pixels.push_back(p0);
+        truth_.beam_points_in_world.push_back(p);
+      }
       const double reach_u = 4.0 * std::sqrt(sigma(0, 0)), reach_v = 4.0 * std::sqrt(sigma(1, 1));
       const int u_lo = std::max(0, static_cast<int>(std::floor(p0.x() - reach_u)));
       const int u_hi = std::min(w - 1, static_cast<int>(std::ceil(p0.x() + reach_u)));
@@ -809,6 +854,94 @@ Result<Frame> SimWorld::Expose(double t0, double* link_s_out) {
           const double du = u - p0.x();
           const double q = info(0, 0) * du * du + 2.0 * info(0, 1) * du * dv + info(1, 1) * dv * dv;
           if (q < 32.0) row[u] += static_cast<float>(electrons_peak * std::exp(-0.5 * q));
+        }
+      }
+      return true;
+    };
+    // Interreflection's sources: the spots' diffuse light, binned on a 0.5 mm grid.
+    struct GlowSource {
+      Eigen::Vector3d point_sum = Eigen::Vector3d::Zero(), normal_sum = Eigen::Vector3d::Zero();
+      double joules = 0.0;  // albedo x energy: what the spot sends back into its half space
+      int count = 0;
+    };
+    std::map<std::array<int64_t, 3>, GlowSource> glow_sources;
+    for (const BeamSample& s : samples) {
+      const ChiefRay ray = true_optics_->Trace(s.angles, pointer_path);
+      const Eigen::Vector3d start = ray.AtHeight(scene_->stage_z() + kTraceStartHeightMm);
+      Hit hit;
+      if (!scene_->Intersect(start, -ray.up, 5000.0, &hit)) continue;
+      const Eigen::Vector3d& p = hit.point_in_world;
+      // Beam radius where it meets the surface (Gaussian beam, waist at the focus height).
+      const double defocus_mm = (p.z() - s.focus_z_mm) / ray.up.z();
+      const double w_mm = w0_mm * std::sqrt(1.0 + std::pow(defocus_mm / rayleigh_mm, 2));
+      const Eigen::Vector3d d = -ray.up;
+      draw_spot(hit, d, w_mm, power_w, s.dt_s, true);
+      if (light.interreflection) {
+        GlowSource& src = glow_sources[{std::llround(p.x() * 2.0), std::llround(p.y() * 2.0),
+                                        std::llround(p.z() * 2.0)}];
+        src.point_sum += p;
+        src.normal_sum += hit.normal;
+        src.joules += hit.albedo * power_w * s.dt_s;
+        ++src.count;
+      }
+      // A glossy part mirrors `specular` of the beam about its normal; the mirrored beam,
+      // widened by the lobe over its path, lights the surface it reaches: a second line.
+      if (hit.on_part && part.specular > 0) {
+        const Eigen::Vector3d r = d - 2.0 * d.dot(hit.normal) * hit.normal;
+        Hit second;
+        if (scene_->Intersect(p + r * 1e-3, r, 5000.0, &second)) {
+          const double spread = 2.0 * second.t * std::tan(lobe_rad);
+          draw_spot(second, r, std::hypot(w_mm, spread), part.specular * power_w, s.dt_s, false);
+        }
+      }
+    }
+    // The glow: irradiance I cos(q) / d^2 from each source of intensity albedo P cos(s) / pi,
+    // on the grid of surfaces glow_grid_ holds, spread over the pixels bilinearly.
+    if (light.interreflection && !glow_sources.empty() && !glow_grid_.empty()) {
+      std::vector<GlowSource> sources;
+      sources.reserve(glow_sources.size());
+      for (auto& [key, src] : glow_sources) {
+        src.point_sum /= src.count;
+        src.normal_sum.normalize();
+        sources.push_back(src);
+      }
+      const int gw = (w + kGlowStep - 1) / kGlowStep, gh = (h + kGlowStep - 1) / kGlowStep;
+      std::vector<float> grid(static_cast<size_t>(gw) * gh, 0.0f);
+      ParallelRows(gh, [&](int j0, int j1) {
+        for (int j = j0; j < j1; ++j) {
+          for (int i = 0; i < gw; ++i) {
+            const GlowPoint& g = glow_grid_[static_cast<size_t>(j) * gw + i];
+            if (!(g.e_per_s_per_w_m2 > 0.0f)) continue;
+            const Eigen::Vector3d q = g.point.cast<double>(), nq = g.normal.cast<double>();
+            double joules_per_m2 = 0.0;
+            for (const GlowSource& src : sources) {
+              const Eigen::Vector3d sq = q - src.point_sum;
+              const double d2 = sq.squaredNorm();
+              if (d2 < 0.25) continue;  // the spot itself: the stripe
+              const double dist = std::sqrt(d2);
+              const double cos_s = src.normal_sum.dot(sq) / dist;
+              const double cos_q = -nq.dot(sq) / dist;
+              if (cos_s <= 0.0 || cos_q <= 0.0) continue;
+              joules_per_m2 += src.joules * cos_s * cos_q / (M_PI * d2 * 1e-6);
+            }
+            grid[static_cast<size_t>(j) * gw + i] =
+                static_cast<float>(joules_per_m2 * g.e_per_s_per_w_m2);
+          }
+        }
+      });
+      glow.assign(static_cast<size_t>(w) * h, 0.0f);
+      for (int v = 0; v < h; ++v) {
+        const double y = static_cast<double>(v) / kGlowStep;
+        const int j = std::min(static_cast<int>(y), gh - 1), j1 = std::min(j + 1, gh - 1);
+        const double fy = y - j;
+        for (int u = 0; u < w; ++u) {
+          const double x = static_cast<double>(u) / kGlowStep;
+          const int i = std::min(static_cast<int>(x), gw - 1), i1 = std::min(i + 1, gw - 1);
+          const double fx = x - i;
+          const auto at = [&](int ii, int jj) { return grid[static_cast<size_t>(jj) * gw + ii]; };
+          glow[static_cast<size_t>(v) * w + u] =
+              static_cast<float>((1 - fy) * ((1 - fx) * at(i, j) + fx * at(i1, j)) +
+                                 fy * ((1 - fx) * at(i, j1) + fx * at(i1, j1)));
         }
       }
     }
@@ -839,18 +972,32 @@ Result<Frame> SimWorld::Expose(double t0, double* link_s_out) {
   const double dark_e = cam_opts.dark_current_e_per_s * binning_ * binning_ * exposure_s;
   const float speckle_floor = stripe_max * 1e-3f;
   const int max_dn = frame.max_value();
+  // A colour sensor: each pixel behind one filter of the mosaic (red, green, blue: 0, 1, 2 in
+  // the pattern's first two rows), passing the pointer's red and the room's white light as
+  // CameraOptions says.
+  frame.format = PixelFormatOfName(cam_opts.pixel_format);
+  const bool mosaic = IsBayer(frame.format);
+  const int mx = frame.format == PixelFormat::kBayerGR || frame.format == PixelFormat::kBayerBG;
+  const int my = frame.format == PixelFormat::kBayerGB || frame.format == PixelFormat::kBayerBG;
+  static constexpr int kFilterAt[2][2] = {{0, 1}, {1, 2}};  // RG / GB, the kBayerRG pattern
+  static constexpr float kPointerPass[3] = {0.9f, 0.10f, 0.05f};
+  static constexpr float kWhitePass[3] = {0.30f, 0.40f, 0.30f};
   ParallelRows(h, [&](int v_begin, int v_end) {
     for (int v = v_begin; v < v_end; ++v) {
       NoiseSource noise(frame_seed ^ SplitMix64(static_cast<uint64_t>(v)));
       const size_t row = static_cast<size_t>(v) * w;
       for (int u = 0; u < w; ++u) {
-        double e = ambient_e_per_s_[row + u] * exposure_s + dark_e;
-        const float s = stripe[row + u];
+        const int filter = mosaic ? kFilterAt[(v + my) & 1][(u + mx) & 1] : -1;
+        const float white = mosaic ? kWhitePass[filter] : 1.0f;
+        const float red = mosaic ? kPointerPass[filter] : 1.0f;
+        double e = ambient_e_per_s_[row + u] * exposure_s * white + dark_e;
+        const float s = stripe[row + u] * red;
         if (s > speckle_floor && light.speckle_contrast > 0) {
           e += s * SpeckleFactor(u, v, grain_px, light.speckle_contrast, frame_seed);
         } else {
           e += s;
         }
+        if (!glow.empty()) e += glow[row + u] * red;
         if (cam_opts.noise) e = noise.ShotAndRead(e, read_var);
         e = std::min(e, full_well);
         const int dn = std::clamp(static_cast<int>(e * dn_per_e + 0.5), 0, max_dn);
@@ -875,6 +1022,7 @@ Result<Frame> SimWorld::Expose(double t0, double* link_s_out) {
                       frame.bytes.begin() + static_cast<ptrdiff_t>(stride * first));
     frame.offset_y = first;
     frame.height = last - first;
+    frame.format = BayerShifted(frame.format, 0, first);
   }
   // The frame then crosses the camera's link: its bytes at the link's rate.
   *link_s_out = LinkSeconds(frame.bytes.size());

@@ -123,6 +123,8 @@ void ReadWorld(ConfigReader& r, WorldOptions* w) {
   c.Read("dark_current_e_per_s", &co.dark_current_e_per_s);
   c.Read("gain_db", &co.gain_db);
   c.Read("bit_depth", &co.bit_depth);
+  c.ReadEnum("pixel_format", &co.pixel_format,
+             {"Mono", "BayerRG", "BayerGR", "BayerGB", "BayerBG"});
   c.Read("exposure_ms", &co.exposure_ms);
   c.Read("noise", &co.noise);
   c.Read("link_mb_per_s", &co.link_mb_per_s);
@@ -134,6 +136,9 @@ void ReadWorld(ConfigReader& r, WorldOptions* w) {
   l.Read("speckle_contrast", &w->light.speckle_contrast);
   l.Read("speckle_grain_px", &w->light.speckle_grain_px);
   l.Read("shadows", &w->light.shadows);
+  l.ReadArray("lamp_position_mm", w->light.lamp_position_mm.data(), 3);
+  l.Read("lamp_lux", &w->light.lamp_lux);
+  l.Read("interreflection", &w->light.interreflection);
   if (l.ok()) l.FailFromValidate(w->light.Validate());
 
   ConfigReader& p = r.Section("part");
@@ -143,6 +148,8 @@ void ReadWorld(ConfigReader& r, WorldOptions* w) {
   p.ReadArray("position_mm", po.position_mm.data(), 2);
   p.Read("rotation_deg", &po.rotation_deg);
   p.Read("albedo", &po.albedo);
+  p.Read("specular", &po.specular);
+  p.Read("specular_lobe_deg", &po.specular_lobe_deg);
   p.Read("ablation_threshold_j_per_cm2", &po.ablation_threshold_j_per_cm2);
   p.Read("ablation_depth_um", &po.ablation_depth_um);
   p.Read("marked_reflectance", &po.marked_reflectance);
@@ -202,6 +209,20 @@ void ReadWorld(ConfigReader& r, WorldOptions* w) {
   st.Read("plate_marked_reflectance", &w->stage.plate_marked_reflectance);
   st.Read("plate_size_mm", &w->stage.plate_size_mm);
   st.Read("plate_bow_mm", &w->stage.plate_bow_mm);
+  if (st.Has("labels")) {
+    st.Skip("labels");
+    const ConfigNode labels = st.node().Child("labels");
+    w->stage.labels.clear();
+    for (size_t i = 0; labels.IsSequence() && i < labels.size(); ++i) {
+      auto l = labels.At(i).AsDoubleList();
+      if (!l.ok() || l->size() != 5) {
+        st.Fail("labels", "entry " + std::to_string(i) + " must be [x, y, width, height, albedo]");
+        break;
+      }
+      w->stage.labels.push_back({(*l)[0], (*l)[1], (*l)[2], (*l)[3], (*l)[4]});
+    }
+    if (!labels.IsSequence()) st.Fail("labels", "must be a list of [x, y, width, height, albedo]");
+  }
   st.Read("scale_error_ppm", &w->stage.scale_error_ppm);
   if (st.ok()) st.FailFromValidate(w->stage.Validate());
 

@@ -89,6 +89,11 @@ Status CameraOptions::Validate() const {
     return InvalidValue("dark_current_e_per_s", ">= 0", dark_current_e_per_s);
   if (!(gain_db >= 0 && gain_db <= 24)) return InvalidValue("gain_db", "in [0, 24]", gain_db);
   if (bit_depth != 8 && bit_depth != 12) return InvalidValue("bit_depth", "8 or 12", bit_depth);
+  if (pixel_format != "Mono" && pixel_format != "BayerRG" && pixel_format != "BayerGR" &&
+      pixel_format != "BayerGB" && pixel_format != "BayerBG") {
+    return InvalidArgument("pixel_format must be Mono, BayerRG, BayerGR, BayerGB or BayerBG, got " +
+                           pixel_format);
+  }
   if (!(link_mb_per_s >= 0.0 && link_mb_per_s <= 1e5)) {
     return InvalidValue("link_mb_per_s", "in [0, 1e5] (0: no link time)", link_mb_per_s);
   }
@@ -109,6 +114,14 @@ Status LightOptions::Validate() const {
   if (!(speckle_contrast >= 0 && speckle_contrast <= 1)) {
     return InvalidValue("speckle_contrast", "in [0, 1]", speckle_contrast);
   }
+  if (!(lamp_lux >= 0 && lamp_lux < 2e5)) return InvalidValue("lamp_lux", "in [0, 2e5)", lamp_lux);
+  for (double c : lamp_position_mm) {
+    if (!std::isfinite(c)) return InvalidValue("lamp_position_mm", "finite", c);
+  }
+  if (lamp_lux > 0 &&
+      std::hypot(lamp_position_mm[0], lamp_position_mm[1], lamp_position_mm[2]) < 50.0) {
+    return InvalidArgument("lamp_position_mm must be at least 50 mm from the world's origin");
+  }
   if (!(speckle_grain_px >= 0 && speckle_grain_px < 100)) {
     return InvalidValue("speckle_grain_px", "in [0, 100)", speckle_grain_px);
   }
@@ -121,6 +134,14 @@ Status PartOptions::Validate() const {
     return InvalidArgument(
         "kind must be one of none, plane, step_gauge, arc, insert, grid_plate, panel, got " +
         kind);
+  }
+  if (!(specular >= 0 && specular <= 1)) return InvalidValue("specular", "in [0, 1]", specular);
+  if (!(albedo + specular <= 1.0 + 1e-9)) {
+    return InvalidArgument("albedo + specular must be at most 1 (energy), got " +
+                           std::to_string(albedo + specular));
+  }
+  if (!(specular_lobe_deg >= 0.5 && specular_lobe_deg <= 45)) {
+    return InvalidValue("specular_lobe_deg", "in [0.5, 45]", specular_lobe_deg);
   }
   if (!(albedo >= 0 && albedo <= 1)) return InvalidValue("albedo", "in [0, 1]", albedo);
   if (!(ablation_depth_um >= 0))
@@ -282,6 +303,15 @@ Status StageOptions::Validate() const {
   // stand on, and where the plate's intersection (Scene) still converges in its four passes.
   if (!(std::abs(plate_bow_mm) <= 0.01 * plate_size_mm)) {
     return InvalidValue("plate_bow_mm", "within +-1 % of plate_size_mm", plate_bow_mm);
+  }
+  for (size_t i = 0; i < labels.size(); ++i) {
+    const auto& l = labels[i];
+    const std::string name = "labels[" + std::to_string(i) + "]";
+    if (!std::isfinite(l[0]) || !std::isfinite(l[1]) || !IsPositiveFinite(l[2]) ||
+        !IsPositiveFinite(l[3])) {
+      return InvalidArgument(name + " must be [x, y, width > 0, height > 0, albedo]");
+    }
+    if (!(l[4] >= 0 && l[4] <= 1)) return InvalidValue(name + " albedo", "in [0, 1]", l[4]);
   }
   if (!(std::abs(scale_error_ppm) <= 1e5)) {
     return InvalidValue("scale_error_ppm", "within +-100000", scale_error_ppm);

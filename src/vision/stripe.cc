@@ -64,13 +64,33 @@ constexpr int kGroupCols = 64;
 // A group is split when its columns' stripe blocks spread over more than this many blocks
 // (steep or broken stripes), so the exactly filtered band stays short.
 constexpr int kMaxBlockSpread = 2;
-// Blocks per superblock: the far-peak test of a group reads superblock maxima (a small table that
-// stays in cache) instead of every block of its columns, which measured 3x slower (cache misses).
-constexpr int kSuperBlocks = 8;
-// Rows beyond the ends of the run where the local background under a stripe is read: a run
-// above K = gmax / 2 ends ~1.2 sigma from the centre, so 3 more pixels (sigma ~1.5 px) are
-// ~3 sigma out, where the stripe adds under 1% of its peak.
-constexpr int kBaseOffset = 3;
+// Rows a ridge looks to either side (R(b) of RidgeBody: d blocks of at least this many rows): a
+// stripe of up to ~13 px at half its peak has fallen to a few percent there, while a lit surface
+// or a white label wider than twice this shows no ridge inside.
+constexpr int kRidgeRows = 16;
+// The symmetry test: a valid centre lies within this fraction of the run's width at K, plus a
+// slack, of the run's mid-point. Speckle (contrast 0.2, grains of ~2-3 px) moves a stripe's
+// centroid against its half-level crossings by up to ~0.1 of the width; a shoulder of a third of
+// the peak merged into the run moves it by a quarter.
+constexpr double kMaxAsymmetry = 0.15;
+constexpr double kAsymmetrySlackPx = 0.35;
+// The width test: at most this many times the frame's stripe width at K, plus a slack (a narrow
+// stripe's width is quantized by the pixels), and the least sample of valid columns that gives
+// the frame's width.
+constexpr double kMaxWidthRatio = 1.75;
+constexpr double kWidthSlackPx = 1.5;
+constexpr size_t kMinWidthSample = 16;
+// The least width at K of a stripe: one pixel alone above K (a hot pixel with no median
+// filter) crosses K half a pixel either side, width 1.0; a beam blurred to sigma >= 0.5 px (any
+// lens's diffraction and the pixel box) is wider than 1.16.
+constexpr double kMinWidthPx = 1.1;
+// The continuity test: a centre this far (pixels) from the agreeing centres of the kIsolatedReach
+// scan lines on each side is isolated. Speckle moves centres by ~0.2 px rms, a surface's
+// slope by a pixel per scan line at the steepest a stripe stays valid; 3 px is neither.
+constexpr float kIsolatedPx = 3.0f;
+constexpr int kIsolatedReach = 4;
+// Valid candidates weighed per scan line, at most (a lit texture can hold many peaks).
+constexpr size_t kMaxCandidates = 16;
 // Rows sampled per column for the background median (odd: the median is one sample).
 constexpr int kBackgroundSamples = 31;
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
@@ -114,7 +134,6 @@ template <typename T>
 struct Work {
   std::vector<T> acc;         // W: pass 1 running block maximum of v (generic blocks)
   std::vector<T> blocks;      // nb x W: block maximum of v
-  std::vector<T> supers;      // ceil(nb / kSuperBlocks) x W: superblock maximum of v
   std::vector<T> colmax;      // W: maximum of v over the column
   std::vector<T> argblock;    // W: first block holding colmax
   std::vector<T> upper;       // W: colmax over u-1..u+1, bounds the exact gmax
@@ -122,12 +141,19 @@ struct Work {
   std::vector<T> background;  // W
   std::vector<T> probe;       // W, radix select scratch
   std::vector<T> count;       // W, radix select scratch
+  std::vector<T> ridge_prev, ridge_cur, ridge_next;  // W each: R of three consecutive blocks
+  std::vector<T> ridge, ridge_block;                 // W: the largest ridge and its block
+  std::vector<uint8_t> ridge_count;                  // W: ridges reaching the floor, up to 2
   // Pass 2, one group.
   std::vector<T> pad, lo, mid, hi, tile;
-  std::vector<T> gmax, kint, farmax, farown, part;
-  std::vector<uint16_t> argrow, above;
-  std::vector<uint8_t> candidate, select;
-  std::vector<std::pair<int, int>> retry;  // (column, forced block or -1) to redo, wider band
+  std::vector<T> gmax;
+  std::vector<uint16_t> argrow;
+  std::vector<uint8_t> candidate;
+  std::vector<T> seed_block;  // per group column: the block its stripe is sought in
+  std::vector<float> widths;  // W: valid columns' widths at K, for the frame's width test
+  std::vector<float> sorted_widths;
+  std::vector<float> evidence;  // W: where each scan line sees the stripe (valid or clipped)
+  std::vector<int> offband;     // one column's valid peaks found outside its band
   std::vector<T> transposed;
 };
 
@@ -174,9 +200,9 @@ INSITU_INLINE void AccumulateRow1(const T* __restrict a, const T* __restrict b,
 // the superblock maximum and the column maximum. Fusing the block's bookkeeping into the row
 // loop measured ~20% faster for pass 1 than accumulating 4 rows at a time and sweeping the
 // block's columns afterwards.
-template <typename T, bool kMedian, bool kFirstOfSuper>
-INSITU_INLINE void Block8(const T* const* rows, T* __restrict out, T* __restrict super,
-                          T* __restrict colmax, T* __restrict argblock, T block_id, int n) {
+template <typename T, bool kMedian>
+INSITU_INLINE void Block8(const T* const* rows, T* __restrict out, T* __restrict colmax,
+                          T* __restrict argblock, T block_id, int n) {
   const T* __restrict x0 = rows[0];
   const T* __restrict x1 = rows[1];
   const T* __restrict x2 = rows[2];
@@ -207,7 +233,6 @@ INSITU_INLINE void Block8(const T* const* rows, T* __restrict out, T* __restrict
       m = Max(Max(Max(x1[u], x2[u]), Max(x3[u], x4[u])), Max(Max(x5[u], x6[u]), Max(x7[u], x8[u])));
     }
     out[u] = m;
-    super[u] = kFirstOfSuper ? m : Max(super[u], m);
     const bool gt = m > colmax[u];
     colmax[u] = gt ? m : colmax[u];
     argblock[u] = gt ? block_id : argblock[u];
@@ -232,16 +257,10 @@ INSITU_INLINE void Pass1Body(const Plane<T>& p, Work<T>& w, int block_rows, int 
     const int r1 = std::min(height, r0 + block_rows);
     const T block_id = static_cast<T>(b);  // fits: see ColumnExtractor()
     T* __restrict out = w.blocks.data() + static_cast<size_t>(b) * width;
-    T* __restrict super = w.supers.data() + static_cast<size_t>(b / kSuperBlocks) * width;
-    const bool first = b % kSuperBlocks == 0;
     if (r1 - r0 == 8) {
       const T* rows[10];
       for (int i = 0; i < 10; ++i) rows[i] = p.row_clamped(r0 - 1 + i);
-      if (first) {
-        Block8<T, kMedian, true>(rows, out, super, colmax, argblock, block_id, width);
-      } else {
-        Block8<T, kMedian, false>(rows, out, super, colmax, argblock, block_id, width);
-      }
+      Block8<T, kMedian>(rows, out, colmax, argblock, block_id, width);
     } else {
       // Taller blocks (tall frames) and the last, partial block: 4 rows at a time into acc.
       int r = r0;
@@ -270,7 +289,6 @@ INSITU_INLINE void Pass1Body(const Plane<T>& p, Work<T>& w, int block_rows, int 
       for (int u = 0; u < width; ++u) {
         const T m = acc[u];
         out[u] = m;
-        super[u] = first ? m : Max(super[u], m);
         const bool gt = m > colmax[u];
         colmax[u] = gt ? m : colmax[u];
         argblock[u] = gt ? block_id : argblock[u];
@@ -383,77 +401,58 @@ INSITU_INLINE void TileBody(const Plane<T>& p, int u0, int n, int rlo, int rhi, 
   }
 }
 
-// above[c] = number of band rows with m > kint[c]; farmax[c] = the bound on m outside the band.
-// kN > 0 fixes the group width at compile time: these loops run once per band row or block with
-// only 64 columns, where a runtime trip count costs more than the work.
-template <typename T, int kN, bool kMedian>
-INSITU_INLINE void CountBodyN(const T* __restrict blocks, const T* __restrict supers, int width,
-                              int num_blocks, int u0, int n_runtime, int rows, int blo, int bhi,
-                              Work<T>& w) {
-  const int n = kN > 0 ? kN : n_runtime;
-  const T* __restrict tile = w.tile.data();
-  const T* __restrict kint = w.kint.data();
-  uint16_t* __restrict above = w.above.data();
-  T* __restrict part = w.part.data();
-  T* __restrict farmax = w.farmax.data();
-  std::fill_n(above, n, uint16_t{0});
-  // Counts in T (one lane per column) over chunks short enough not to overflow it.
-  constexpr int kChunk = std::numeric_limits<T>::max();
-  for (int i0 = 0; i0 < rows; i0 += kChunk) {
-    const int i1 = std::min(rows, i0 + kChunk);
-    std::fill_n(part, n, T{0});
-    for (int i = i0; i < i1; ++i) {
-      const T* __restrict t = tile + i * n;
-      for (int c = 0; c < n; ++c) part[c] = static_cast<T>(part[c] + (t[c] > kint[c]));
-    }
-    for (int c = 0; c < n; ++c) above[c] = static_cast<uint16_t>(above[c] + part[c]);
-  }
-  // Superblocks clear of the band by their maxima, those overlapping it by their blocks; the
-  // tables hold own-column maxima of v, so the bound on m takes columns u-1..u+1 (lo..hi with
-  // the border replicated, as the filter does).
-  const int lo = std::max(u0 - 1, 0);
-  const int hi = std::min(u0 + n, width - 1);
-  const int span = hi - lo + 1;
-  T* __restrict own = w.farown.data();
-  std::fill_n(own, span, T{0});
-  const int num_supers = (num_blocks + kSuperBlocks - 1) / kSuperBlocks;
-  for (int sb = 0; sb < num_supers; ++sb) {
-    const int b0 = sb * kSuperBlocks;
-    const int b1 = std::min(num_blocks, b0 + kSuperBlocks) - 1;
-    if (b1 < blo || b0 > bhi) {
-      const T* __restrict sm = supers + static_cast<size_t>(sb) * width + lo;
-      for (int c = 0; c < span; ++c) own[c] = Max(own[c], sm[c]);
-      continue;
-    }
-    for (int b = b0; b <= b1; ++b) {
-      if (b >= blo && b <= bhi) continue;
-      const T* __restrict bm = blocks + static_cast<size_t>(b) * width + lo;
-      for (int c = 0; c < span; ++c) own[c] = Max(own[c], bm[c]);
-    }
-  }
-  // own[i] is column lo + i; farmax[c] is column u0 + c.
-  for (int c = 0; c < n; ++c) {
-    const int u = u0 + c;
-    const int left = std::max(u - 1, 0) - lo;
-    const int right = std::min(u + 1, width - 1) - lo;
-    farmax[c] = kMedian ? Max(Max(own[left], own[u - lo]), own[right]) : own[u - lo];
-  }
-}
-
+// The stripe's blocks, by the block maxima of pass 1 (own column, vertical median v): the ridge
+// of block b is R(b) = bm(b) - max(bm(b - d), bm(b + d)) (0 where negative; a side beyond the
+// frame counts as dark), its height above the brighter of the blocks d away on either side. A
+// stripe (a few pixels wide) stands above both; a lit surface wider than 2 d blocks, or its
+// edge (a step), does not. Per column: the number of local maxima of R reaching `floor` (up to
+// 2: one stripe or more than one), the largest such R and its block.
 template <typename T>
-INSITU_INLINE void CountBody(const T* __restrict blocks, const T* __restrict supers, int width,
-                             int num_blocks, int u0, int n, int rows, int blo, int bhi, bool median,
-                             Work<T>& w) {
-  if (n == kGroupCols) {
-    if (median) {
-      CountBodyN<T, kGroupCols, true>(blocks, supers, width, num_blocks, u0, n, rows, blo, bhi, w);
-    } else {
-      CountBodyN<T, kGroupCols, false>(blocks, supers, width, num_blocks, u0, n, rows, blo, bhi, w);
+INSITU_INLINE void RidgeBody(const T* __restrict blocks, int num_blocks, int width, int d, T floor,
+                             T* __restrict prev, T* __restrict cur, T* __restrict next,
+                             T* __restrict best, T* __restrict best_block,
+                             uint8_t* __restrict count) {
+  std::fill_n(best, width, T{0});
+  std::fill_n(best_block, width, T{0});
+  std::fill_n(count, width, uint8_t{0});
+  auto ridge = [&](int b, T* __restrict out) INSITU_LAMBDA_INLINE {
+    if (b < 0 || b >= num_blocks) {
+      std::fill_n(out, width, T{0});
+      return;
     }
-  } else if (median) {
-    CountBodyN<T, 0, true>(blocks, supers, width, num_blocks, u0, n, rows, blo, bhi, w);
-  } else {
-    CountBodyN<T, 0, false>(blocks, supers, width, num_blocks, u0, n, rows, blo, bhi, w);
+    const T* __restrict m = blocks + static_cast<size_t>(b) * width;
+    const T* __restrict lo = b - d >= 0 ? blocks + static_cast<size_t>(b - d) * width : nullptr;
+    const T* __restrict hi =
+        b + d < num_blocks ? blocks + static_cast<size_t>(b + d) * width : nullptr;
+    if (lo != nullptr && hi != nullptr) {
+      for (int u = 0; u < width; ++u) {
+        const T side = Max(lo[u], hi[u]);
+        out[u] = m[u] > side ? static_cast<T>(m[u] - side) : T{0};
+      }
+    } else {
+      const T* __restrict one = lo != nullptr ? lo : hi;
+      for (int u = 0; u < width; ++u) {
+        const T side = one != nullptr ? one[u] : T{0};
+        out[u] = m[u] > side ? static_cast<T>(m[u] - side) : T{0};
+      }
+    }
+  };
+  ridge(-1, prev);
+  ridge(0, cur);
+  for (int b = 0; b < num_blocks; ++b) {
+    ridge(b + 1, next);
+    const T id = static_cast<T>(b);
+    for (int u = 0; u < width; ++u) {
+      const bool peak = cur[u] >= floor && cur[u] > prev[u] && cur[u] >= next[u];
+      count[u] = static_cast<uint8_t>(Min<int>(count[u] + peak, 2));
+      const bool better = peak && cur[u] > best[u];
+      best[u] = better ? cur[u] : best[u];
+      best_block[u] = better ? id : best_block[u];
+    }
+    T* t = prev;
+    prev = cur;
+    cur = next;
+    next = t;
   }
 }
 
@@ -498,15 +497,15 @@ INSITU_VECTOR_CLONES void TileU16(const Plane<uint16_t>& p, int u0, int n, int r
     TileBody<uint16_t, false>(p, u0, n, rlo, rhi, w);
   }
 }
-INSITU_VECTOR_CLONES void CountU8(int width, int num_blocks, int u0, int n, int rows, int blo,
-                                  int bhi, bool median, Work<uint8_t>& w) {
-  CountBody<uint8_t>(w.blocks.data(), w.supers.data(), width, num_blocks, u0, n, rows, blo, bhi,
-                     median, w);
+INSITU_VECTOR_CLONES void RidgeU8(Work<uint8_t>& w, int nb, int width, int d, uint8_t floor) {
+  RidgeBody<uint8_t>(w.blocks.data(), nb, width, d, floor, w.ridge_prev.data(), w.ridge_cur.data(),
+                     w.ridge_next.data(), w.ridge.data(), w.ridge_block.data(),
+                     w.ridge_count.data());
 }
-INSITU_VECTOR_CLONES void CountU16(int width, int num_blocks, int u0, int n, int rows, int blo,
-                                   int bhi, bool median, Work<uint16_t>& w) {
-  CountBody<uint16_t>(w.blocks.data(), w.supers.data(), width, num_blocks, u0, n, rows, blo, bhi,
-                      median, w);
+INSITU_VECTOR_CLONES void RidgeU16(Work<uint16_t>& w, int nb, int width, int d, uint16_t floor) {
+  RidgeBody<uint16_t>(w.blocks.data(), nb, width, d, floor, w.ridge_prev.data(), w.ridge_cur.data(),
+                      w.ridge_next.data(), w.ridge.data(), w.ridge_block.data(),
+                      w.ridge_count.data());
 }
 
 inline void Pass1(const Plane<uint8_t>& p, Work<uint8_t>& w, int block_rows, int step, int ns,
@@ -531,13 +530,11 @@ inline void Tile(const Plane<uint16_t>& p, int u0, int n, int rlo, int rhi, Work
                  bool median) {
   TileU16(p, u0, n, rlo, rhi, w, median);
 }
-inline void Count(int width, int nb, int u0, int n, int rows, int blo, int bhi, bool median,
-                  Work<uint8_t>& w) {
-  CountU8(width, nb, u0, n, rows, blo, bhi, median, w);
+inline void Ridge(Work<uint8_t>& w, int nb, int width, int d, int floor) {
+  RidgeU8(w, nb, width, d, static_cast<uint8_t>(std::min(floor, 255)));
 }
-inline void Count(int width, int nb, int u0, int n, int rows, int blo, int bhi, bool median,
-                  Work<uint16_t>& w) {
-  CountU16(width, nb, u0, n, rows, blo, bhi, median, w);
+inline void Ridge(Work<uint16_t>& w, int nb, int width, int d, int floor) {
+  RidgeU16(w, nb, width, d, static_cast<uint16_t>(std::min(floor, 65535)));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -547,8 +544,13 @@ template <typename T>
 class ColumnExtractor {
  public:
   ColumnExtractor(const Plane<T>& plane, const StripeOptions& options, int saturation_level,
-                  Work<T>& work, StripeResult* result)
-      : p_(plane), o_(options), w_(work), res_(result), saturation_(saturation_level) {
+                  Work<T>& work, StripeResult* result, const StripeWindow* window)
+      : p_(plane),
+        o_(options),
+        w_(work),
+        res_(result),
+        saturation_(saturation_level),
+        window_(window) {
     median_ = options.median_kernel == 3;
     // The block index is stored in a T (one vector lane per column in pass 1).
     block_rows_ = kMinBlockRows;
@@ -556,9 +558,8 @@ class ColumnExtractor {
       block_rows_ *= 2;
     }
     num_blocks_ = (p_.height + block_rows_ - 1) / block_rows_;
-    // A margin that holds any run that is not too wide, plus the gap that ends it.
-    wide_margin_ =
-        (o_.max_width_px + o_.min_peak_separation_px + 2 + block_rows_ - 1) / block_rows_ + 1;
+    ridge_blocks_ = std::max(1, (kRidgeRows + block_rows_ - 1) / block_rows_);
+    reach_ = std::clamp(o_.max_width_px / 4, 4, 16);
   }
 
   void Run() {
@@ -568,38 +569,35 @@ class ColumnExtractor {
     const int ns = std::min(height, kBackgroundSamples);
     Pass1(p_, w_, block_rows_, height / ns, ns, median_);
     ColumnMedian(w_, ns, width);
+    Ridge(w_, num_blocks_, width, ridge_blocks_, RidgeFloor());
+    std::fill(w_.widths.begin(), w_.widths.end(), kNaN);
+    std::fill(w_.evidence.begin(), w_.evidence.end(), kNaN);
     for (int u0 = 0; u0 < width; u0 += kGroupCols) {
-      const int n = std::min(kGroupCols, width - u0);
-      w_.retry.clear();
-      ProcessRange(u0, n, /*margin=*/1, /*forced_block=*/-1, /*select=*/nullptr);
-      if (w_.retry.empty()) continue;
-      // Columns whose run reached the band edge (wide stripes) are redone together with a band
-      // that holds any acceptable run; a column whose exact maximum lies outside its band is
-      // redone alone, around that maximum.
-      std::fill_n(w_.select.begin(), n, uint8_t{0});
-      bool any_edge = false;
-      for (size_t i = 0; i < w_.retry.size(); ++i) {
-        const auto [u, forced] = w_.retry[i];
-        if (forced < 0) {
-          w_.select[u - u0] = 1;
-          any_edge = true;
-        }
-      }
-      if (any_edge) ProcessRange(u0, n, wide_margin_, -1, w_.select.data());
-      // Including those the wide pass just added; these calls add none (forced, wide).
-      for (size_t i = 0; i < w_.retry.size(); ++i) {
-        const auto [u, forced] = w_.retry[i];
-        if (forced >= 0) ProcessRange(u, 1, wide_margin_, forced, nullptr);
-      }
+      ProcessRange(u0, std::min(kGroupCols, width - u0), nullptr);
     }
+    WidthTest();
+    IsolationTest();
   }
 
  private:
+  // One stripe candidate of a scan line, as Evaluate finds it.
+  struct Candidate {
+    StripeStatus status = StripeStatus::kNone;
+    int rp = 0;             // the local maximum of the filtered profile
+    int gmax = 0;           // its value
+    int rs = 0, re = -1;    // the run above K (rows)
+    double level = 0.0;     // K at rp: where other runs of the band are looked for
+    double base = 0.0;      // the local background under the peak
+    double contrast = 0.0;  // gmax - base
+    double center = 0.0;    // eq. (7) with the local background removed
+    double sigma = 0.0;     // the centre's 1-sigma from the local noise
+    double width = 0.0;     // the run's width at K, interpolated between pixels
+  };
+
   void Resize() {
     const size_t width = static_cast<size_t>(p_.width);
     w_.acc.resize(width);
     w_.blocks.resize(static_cast<size_t>(num_blocks_) * width);
-    w_.supers.resize(static_cast<size_t>((num_blocks_ + kSuperBlocks - 1) / kSuperBlocks) * width);
     w_.colmax.resize(width);
     w_.argblock.resize(width);
     w_.upper.resize(width);
@@ -607,35 +605,40 @@ class ColumnExtractor {
     w_.background.resize(width);
     w_.probe.resize(width);
     w_.count.resize(width);
+    for (auto* v : {&w_.ridge_prev, &w_.ridge_cur, &w_.ridge_next, &w_.ridge, &w_.ridge_block}) {
+      v->resize(width);
+    }
+    w_.ridge_count.resize(width);
+    w_.widths.resize(width);
+    w_.evidence.resize(width);
     // Largest band: spread + 2 margins, in blocks, plus a row above and below for the filter.
-    const int band_blocks =
-        std::min(num_blocks_, kMaxBlockSpread + 1 + 2 * std::max(wide_margin_, 1));
+    const int band_blocks = std::min(num_blocks_, kMaxBlockSpread + 3 + 2 * ridge_blocks_);
     const size_t tile_size = (static_cast<size_t>(band_blocks) * block_rows_ + 2) * kGroupCols;
     w_.pad.resize(kGroupCols + 2);
     for (auto* v : {&w_.lo, &w_.mid, &w_.hi, &w_.tile}) v->resize(tile_size);
-    for (auto* v : {&w_.gmax, &w_.kint, &w_.farmax, &w_.part}) v->resize(kGroupCols);
-    w_.farown.resize(kGroupCols + 2);
+    w_.gmax.resize(kGroupCols);
     w_.argrow.resize(kGroupCols);
-    w_.above.resize(kGroupCols);
     w_.candidate.resize(kGroupCols);
-    w_.select.resize(kGroupCols);
+    w_.seed_block.resize(kGroupCols);
     res_->center.resize(width);
     res_->status.resize(width);
     res_->peak.resize(width);
     res_->base.resize(width);
     res_->width_px.resize(width);
+    res_->sigma_px.resize(width);
   }
 
-  void SetResult(int u, StripeStatus status, int peak, int width_px, float center, int base = 0) {
+  // A ridge at least this high is a stripe candidate: the least contrast a stripe has.
+  int RidgeFloor() const { return std::max(1, static_cast<int>(std::ceil(o_.min_contrast))); }
+
+  void SetResult(int u, StripeStatus status, int peak, int width_px, float center, int base = 0,
+                 float sigma = kNaN) {
     res_->status[u] = status;
     res_->peak[u] = static_cast<uint16_t>(peak);
     res_->base[u] = static_cast<uint16_t>(base);
     res_->width_px[u] = static_cast<uint8_t>(std::clamp(width_px, 0, 255));
     res_->center[u] = center;
-  }
-
-  bool IsNone(double peak, int u) const {
-    return peak < o_.min_peak || peak - static_cast<double>(w_.background[u]) < o_.min_contrast;
+    res_->sigma_px[u] = sigma;
   }
 
   // Exact filtered value at one pixel (slow path).
@@ -658,14 +661,213 @@ class ColumnExtractor {
     return Med3(lo, Med3(m[0], m[1], m[2]), hi);
   }
 
-  // Largest exact value of column u outside blocks [blo, bhi], only looking into blocks whose
-  // bound (block maximum of v over columns u-1..u+1) exceeds `floor`; returns `floor` when
-  // nothing exceeds it.
-  T MaxOutside(int u, int blo, int bhi, T floor, int* row_out) const {
+  // The contiguous run around rp of rows whose filtered value exceeds level(r); dips below it
+  // shorter than min_peak_separation_px are noise inside one stripe and are bridged. Stops one
+  // row past max_width_px (then too wide).
+  template <typename At, typename Level>
+  void RunAround(const At& at, int rp, const Level& level, int* rs_out, int* re_out) const {
+    const int height = p_.height;
+    int re = rp;
+    for (int r = rp + 1, gap = 0; r < height; ++r) {
+      if (at(r) > level(r)) {
+        re = r;
+        gap = 0;
+        if (re - rp >= o_.max_width_px) break;
+      } else if (++gap >= o_.min_peak_separation_px) {
+        break;
+      }
+    }
+    int rs = rp;
+    for (int r = rp - 1, gap = 0; r >= 0; --r) {
+      if (at(r) > level(r)) {
+        rs = r;
+        gap = 0;
+        if (rp - rs >= o_.max_width_px) break;
+      } else if (++gap >= o_.min_peak_separation_px) {
+        break;
+      }
+    }
+    *rs_out = rs;
+    *re_out = re;
+  }
+
+  // The stripe candidate whose peak the filtered profile `at` climbs to from `seed` (see the file
+  // comment: local background, threshold above it, centroid, shape).
+  template <typename At>
+  Candidate Evaluate(int u, int seed, const At& at) const {
+    const int height = p_.height;
+    Candidate c;
+    int rp = seed;
+    // Up to the peak, and to the first row of a flat top (one answer whatever the seed).
+    while (rp + 1 < height && at(rp + 1) > at(rp)) ++rp;
+    while (rp > 0 && at(rp - 1) >= at(rp)) --rp;
+    c.rp = rp;
+    c.gmax = at(rp);
+    if (c.gmax < o_.min_peak) return c;
+    // A peak: above the darker of the profile reach_ rows to either side by min_contrast.
+    double side = std::numeric_limits<double>::infinity();
+    if (rp - reach_ >= 0) side = at(rp - reach_);
+    if (rp + reach_ < height) side = std::min<double>(side, at(rp + reach_));
+    if (!std::isfinite(side)) side = w_.background[u];
+    c.base = side;
+    c.contrast = c.gmax - side;
+    if (c.contrast < o_.min_contrast) return c;
+    // A first background: the darker of the valleys on either side, where the profile stops
+    // falling (a rise of half min_contrast, or no new minimum for reach_ rows), at most
+    // max_width_px rows out (a profile falling further is too wide, which its run then shows).
+    double b0 = std::numeric_limits<double>::infinity();
+    for (int dir : {-1, 1}) {
+      int low = c.gmax, low_row = rp, last = rp;
+      for (int r = rp + dir; r >= 0 && r < height && std::abs(r - rp) <= o_.max_width_px;
+           r += dir) {
+        const int g = at(r);
+        last = r;
+        if (g < low) {
+          low = g;
+          low_row = r;
+        } else if (g > low + 0.5 * o_.min_contrast || std::abs(r - low_row) >= reach_) {
+          break;
+        }
+      }
+      if (last == rp) continue;  // the frame's border
+      b0 = std::min<double>(b0, low);
+    }
+    if (!std::isfinite(b0)) b0 = side;
+    c.base = b0;
+    c.contrast = c.gmax - b0;
+    if (c.contrast < o_.min_contrast) return c;
+    const double k = o_.threshold_ratio;
+    c.level = b0 + k * c.contrast;
+    int rs = rp, re = rp;
+    RunAround(
+        at, rp, [&](int) { return c.level; }, &rs, &re);
+    c.rs = rs;
+    c.re = re;
+    const uint8_t* raw = p_.base + sizeof(T) * u;
+    auto saturated = [&](int from, int to) {
+      for (int r = from; r <= to; ++r) {
+        if (*reinterpret_cast<const T*>(raw + r * p_.stride) >= saturation_) return true;
+      }
+      return false;
+    };
+    if (saturated(rs, re)) {
+      c.status = StripeStatus::kSaturated;
+      return c;
+    }
+    if (re - rs + 1 > o_.max_width_px) {
+      c.status = StripeStatus::kTooWide;
+      return c;
+    }
+    // The local background: two windows beside the run, as long as the run and half a run away
+    // from it (a run above half the peak ends ~1.2 sigma from the centre, so the windows start
+    // ~2.4 sigma out, where a Gaussian profile is under 6 % of its peak, the same on both
+    // sides), joined by a straight line; their scatter about their means is the local noise.
+    const int run = re - rs + 1;
+    const int gap = std::max(2, run / 2);
+    const int len = std::max(3, run);
+    double sum[2] = {0, 0}, sum2[2] = {0, 0}, mid[2] = {0, 0};
+    int count[2] = {0, 0};
+    for (int side = 0; side < 2; ++side) {
+      const int from = side == 0 ? rs - gap - len + 1 : re + gap;
+      for (int r = std::max(from, 0); r <= std::min(from + len - 1, height - 1); ++r) {
+        const double g = at(r);
+        sum[side] += g;
+        sum2[side] += g * g;
+        mid[side] += r;
+        ++count[side];
+      }
+    }
+    double mean[2] = {b0, b0};
+    double noise2 = 0.0;
+    int dof = 0;
+    for (int side = 0; side < 2; ++side) {
+      if (count[side] == 0) continue;
+      mean[side] = sum[side] / count[side];
+      mid[side] /= count[side];
+      noise2 += sum2[side] - sum[side] * mean[side];
+      dof += count[side] - 1;
+    }
+    if (count[0] == 0) mean[0] = mean[1], mid[0] = mid[1] - 1.0;
+    if (count[1] == 0) mean[1] = mean[0], mid[1] = mid[0] + 1.0;
+    noise2 = dof > 0 ? std::max(noise2, 0.0) / dof : 0.0;
+    const double slope = (mean[1] - mean[0]) / (mid[1] - mid[0]);
+    auto bg = [&](int r) { return mean[0] + slope * (r - mid[0]); };
+    c.base = bg(rp);
+    c.contrast = c.gmax - c.base;
+    if (c.contrast < o_.min_contrast) {
+      c.status = StripeStatus::kNone;
+      return c;
+    }
+    c.level = c.base + k * c.contrast;
+    // A surface edge under the stripe: the background on its two sides differs by more than the
+    // stripe's own height. No straight line is the background there.
+    if (count[0] > 0 && count[1] > 0 && std::abs(mean[1] - mean[0]) > c.contrast) {
+      c.status = StripeStatus::kBadShape;
+      return c;
+    }
+    const double kc = k * c.contrast;
+    auto level = [&](int r) { return bg(r) + kc; };
+    RunAround(at, rp, level, &rs, &re);
+    c.rs = rs;
+    c.re = re;
+    if (saturated(rs, re)) {
+      c.status = StripeStatus::kSaturated;
+      return c;
+    }
+    if (re - rs + 1 > o_.max_width_px) {
+      c.status = StripeStatus::kTooWide;
+      return c;
+    }
+    // Eq. (7) with weights g_i - K_i: the stripe's own light above the threshold, so neither the
+    // background nor its slope pulls the centre.
+    double s0 = 0.0, s1 = 0.0;
+    for (int r = rs; r <= re; ++r) {
+      const double weight = std::max(at(r) - level(r), 0.0);
+      s0 += weight;
+      s1 += weight * (r - rp);
+    }
+    if (!(s0 > 0.0)) {
+      c.status = StripeStatus::kNone;
+      return c;
+    }
+    c.center = rp + s1 / s0;
+    double spread = 0.0;
+    for (int r = rs; r <= re; ++r) spread += (r - c.center) * (r - c.center);
+    // std(U) = n sqrt(sum (r_i - U)^2) / sum(w_i) for independent noise n on each g_i, plus
+    // the quantization's 1/12 LSB^2.
+    c.sigma = std::sqrt(noise2 + 1.0 / 12.0) * std::sqrt(spread) / s0;
+    // Where the profile crosses K on either side, between the run's end and the next row.
+    auto crossing = [&](int inside, int outside) {
+      if (outside < 0 || outside >= height) return inside + 0.5 * (outside - inside);
+      const double gi = at(inside), go = at(outside), kl = level(inside);
+      const double t = gi > go ? std::clamp((gi - kl) / (gi - go), 0.0, 1.0) : 0.5;
+      return inside + t * (outside - inside);
+    };
+    const double x0 = crossing(rs, rs - 1), x1 = crossing(re, re + 1);
+    c.width = x1 - x0;
+    if (c.width < kMinWidthPx) {  // one pixel: a defect or noise, not a beam
+      c.status = StripeStatus::kBadShape;
+      return c;
+    }
+    // A stripe's profile is symmetric about its centre (a Gaussian beam, blurred): its centroid
+    // lies mid-way between the crossings, within the noise and speckle. A shoulder (a reflection
+    // or a second surface merged into the run) or a pedestal on one side moves it.
+    if (std::abs(c.center - 0.5 * (x0 + x1)) > kMaxAsymmetry * c.width + kAsymmetrySlackPx) {
+      c.status = StripeStatus::kBadShape;
+      return c;
+    }
+    c.status = StripeStatus::kValid;
+    return c;
+  }
+
+  // Largest exact value of column u in blocks [w_lo, w_hi] outside [blo, bhi], only looking into
+  // blocks whose bound (block maximum of v over columns u-1..u+1) exceeds `floor`; returns `floor`
+  // when nothing exceeds it.
+  T MaxOutside(int u, int blo, int bhi, int w_lo, int w_hi, T floor, int* row_out) const {
     const int ul = median_ ? std::max(u - 1, 0) : u;
     const int ur = median_ ? std::min(u + 1, p_.width - 1) : u;
     T best = floor;
-    for (int b = 0; b < num_blocks_; ++b) {
+    for (int b = w_lo; b <= w_hi; ++b) {
       if (b >= blo && b <= bhi) continue;
       const T* bm = w_.blocks.data() + static_cast<size_t>(b) * p_.width;
       if (Max(Max(bm[ul], bm[u]), bm[ur]) <= best) continue;
@@ -681,64 +883,47 @@ class ColumnExtractor {
     return best;
   }
 
-  // True if column u holds, besides the stripe's run rs..re, another run above K that competes
-  // with it: at most max_width_px long (bridging dips as the main run does) and peaking at
-  // second_peak_ratio * gmax or more. A longer or clearly weaker run is a surface lit by
-  // ambient light (the top of a part, beside a weak stripe on a dark plate, or a corner of it),
-  // not a second stripe, and leaves the stripe valid. Exact medians are computed only in blocks
-  // whose bound exceeds K; the others count as rows below K.
-  bool SecondStripe(int u, int rs, int re, T kint, T gmax) const {
-    const int ul = median_ ? std::max(u - 1, 0) : u;
-    const int ur = median_ ? std::min(u + 1, p_.width - 1) : u;
-    const double min_peak = o_.second_peak_ratio * gmax;
-    int start = -1;
-    int last = -1;
-    T peak = 0;
-    auto closes_stripe = [&]() {  // the open run start..last, if any, is another stripe
-      return start >= 0 && (last < rs || start > re) && last - start + 1 <= o_.max_width_px &&
-             peak >= min_peak;
+  // Ridge R(b) of column u (RidgeBody's, one block).
+  int RidgeAt(int u, int b) const {
+    if (b < 0 || b >= num_blocks_) return 0;
+    const auto bm = [&](int i) {
+      return i >= 0 && i < num_blocks_
+                 ? static_cast<int>(w_.blocks[static_cast<size_t>(i) * p_.width + u])
+                 : 0;
     };
-    for (int b = 0; b < num_blocks_; ++b) {
-      const int r0 = b * block_rows_;
-      const int r1 = std::min(p_.height, r0 + block_rows_);
-      const T* bm = w_.blocks.data() + static_cast<size_t>(b) * p_.width;
-      const bool may_exceed = Max(Max(bm[ul], bm[u]), bm[ur]) > kint;
-      for (int r = r0; r < r1; ++r) {
-        const T m = may_exceed ? ExactAt(u, r) : T{0};
-        if (m > kint) {
-          if (start < 0) {
-            start = r;
-            peak = 0;
-          }
-          last = r;
-          peak = Max(peak, m);
-        } else if (start >= 0 && r - last >= o_.min_peak_separation_px) {
-          if (closes_stripe()) return true;
-          start = -1;
-        }
-      }
-    }
-    return closes_stripe();
+    return std::max(0, bm(b) - std::max(bm(b - ridge_blocks_), bm(b + ridge_blocks_)));
   }
 
   // Columns u0..u0+n-1 (only those with select[c] when select is given), band = the blocks
-  // holding their stripes (forced_block if >= 0) +- margin blocks.
-  void ProcessRange(int u0, int n, int margin, int forced_block, const uint8_t* select) {
+  // holding their stripe candidates +- ridge_blocks_ + 1.
+  void ProcessRange(int u0, int n, const uint8_t* select) {
     int abmin = std::numeric_limits<int>::max();
     int abmax = -1;
     for (int c = 0; c < n; ++c) {
       const int u = u0 + c;
       w_.candidate[c] = 0;
       if (select != nullptr && !select[c]) continue;
-      // No exact value of the column exceeds `upper` (see the file comment), so this decides
-      // kNone for empty scan lines without filtering them (their peak is then the maximum of
-      // the vertical median v: the 3x3 median is never computed there).
-      if (IsNone(w_.upper[u], u)) {
+      // No exact value of the column exceeds `upper` (see the file comment), and a column with
+      // no ridge and nothing above its median by min_contrast holds nothing stripe-like: kNone
+      // without filtering (its peak is then the maximum of the vertical median v).
+      const double upper = w_.upper[u];
+      if (upper < o_.min_peak ||
+          (w_.ridge_count[u] == 0 && upper - w_.background[u] < o_.min_contrast)) {
         SetResult(u, StripeStatus::kNone, w_.colmax[u], 0, kNaN);
         continue;
       }
+      // The highest ridge; with none, the brightest block (it will prove too wide or flat).
+      int ab = w_.ridge_count[u] > 0 ? w_.ridge_block[u] : w_.argblock[u];
+      if (window_ != nullptr) {
+        int b_lo = 0, b_hi = num_blocks_ - 1;
+        if (!WindowBlocks(u, &b_lo, &b_hi)) {
+          SetResult(u, StripeStatus::kNone, 0, 0, kNaN);
+          continue;
+        }
+        if (ab < b_lo || ab > b_hi) ab = BestBlockIn(u, b_lo, b_hi);
+      }
       w_.candidate[c] = 1;
-      const int ab = forced_block >= 0 ? forced_block : w_.argblock[u];
+      w_.seed_block[c] = static_cast<T>(ab);
       abmin = std::min(abmin, ab);
       abmax = std::max(abmax, ab);
     }
@@ -749,12 +934,14 @@ class ColumnExtractor {
       uint8_t selected[kGroupCols];
       std::copy_n(w_.candidate.begin(), n, selected);
       const int half = n / 2;
-      ProcessRange(u0, half, margin, forced_block, selected);
-      ProcessRange(u0 + half, n - half, margin, forced_block, selected + half);
+      ProcessRange(u0, half, selected);
+      ProcessRange(u0 + half, n - half, selected + half);
       return;
     }
-    const int blo = std::max(abmin - margin, 0);
-    const int bhi = std::min(abmax + margin, num_blocks_ - 1);
+    // The band reaches one block beyond where a ridge looks: a weaker peak with the candidate
+    // (its peak block, or its tail in the next) on one side that far shows no ridge of its own.
+    const int blo = std::max(abmin - ridge_blocks_ - 1, 0);
+    const int bhi = std::min(abmax + ridge_blocks_ + 1, num_blocks_ - 1);
     const int rlo = blo * block_rows_;
     const int rhi = std::min(p_.height, (bhi + 1) * block_rows_) - 1;
     const size_t tile_size = static_cast<size_t>(rhi - rlo + 3) * n;
@@ -762,125 +949,279 @@ class ColumnExtractor {
       for (auto* v : {&w_.lo, &w_.mid, &w_.hi, &w_.tile}) v->resize(tile_size);
     }
     Tile(p_, u0, n, rlo, rhi, w_, median_);
-
-    const double k = o_.threshold_ratio;
-    for (int c = 0; c < n; ++c) {
-      // m > K  <=>  m > floor(K) for integer m (the cast truncates: K >= 0). Non-candidates
-      // never count.
-      w_.kint[c] = w_.candidate[c] ? static_cast<T>(k * w_.gmax[c]) : std::numeric_limits<T>::max();
-    }
-    Count(p_.width, num_blocks_, u0, n, rhi - rlo + 1, blo, bhi, median_, w_);
-
     const T* tile = w_.tile.data();
     for (int c = 0; c < n; ++c) {
-      if (!w_.candidate[c]) continue;
-      const int u = u0 + c;
-      const T gmax = w_.gmax[c];
-      // A larger exact value may lie outside the band only where the bound exceeds gmax (e.g. a
-      // two-pixel defect pulled the vertical-median maximum away from the stripe). Then the
-      // column is redone around that value, once.
-      if (w_.farmax[c] > gmax && forced_block < 0) {
-        int row = -1;
-        if (MaxOutside(u, blo, bhi, gmax, &row) > gmax) {
-          w_.retry.emplace_back(u, row / block_rows_);
+      if (w_.candidate[c])
+        Decide(u0 + c, tile + c - static_cast<ptrdiff_t>(rlo) * n, n, rlo, rhi, blo, bhi,
+               w_.seed_block[c]);
+    }
+  }
+
+  // One column: its candidate in the band, any other stripe-like run in the band or at another
+  // ridge of the column, and the verdict.
+  void Decide(int u, const T* col, int n, int rlo, int rhi, int blo, int bhi, int seed_block) {
+    const auto at = [&](int r) -> int {
+      return r >= rlo && r <= rhi ? col[static_cast<ptrdiff_t>(r) * n] : ExactAt(u, r);
+    };
+    // The seed: the brightest row of the seed block.
+    const int b0 = seed_block * block_rows_;
+    const int b1 = std::min(p_.height, b0 + block_rows_) - 1;
+    int seed = b0;
+    for (int r = b0 + 1; r <= b1; ++r) {
+      if (at(r) > at(seed)) seed = r;
+    }
+    const Candidate main = Evaluate(u, seed, at);
+    // Others: every other peak near the candidate (in the band), at the column's other ridges,
+    // and near any of those found outside the band (two stripes, or a reflection: the same
+    // light twice). Every valid one is kept; the verdict weighs them all (Verdict).
+    std::vector<Candidate>& found = cands_;
+    found.clear();
+    if ((main.status == StripeStatus::kValid || main.status == StripeStatus::kSaturated) &&
+        Inside(u, main.rp)) {
+      found.push_back(main);
+    }
+    const int near_rows = (ridge_blocks_ + 2) * block_rows_;
+    std::vector<int>& offband = w_.offband;
+    offband.clear();
+    bool collect_offband = true;  // one level: not around those found around them
+    auto consider = [&](int s) {
+      const Candidate other = Evaluate(u, s, at);
+      if ((other.status != StripeStatus::kValid && other.status != StripeStatus::kSaturated) ||
+          !Inside(u, other.rp)) {
+        return;
+      }
+      for (const Candidate& f : found) {
+        if (f.rp == other.rp) return;
+      }
+      if (found.size() >= kMaxCandidates) return;
+      if (collect_offband && (other.rp < rlo || other.rp > rhi)) offband.push_back(other.rp);
+      found.push_back(other);
+    };
+    // Every peak of rows lo..hi (the first row of a flat top) other than the candidate's that
+    // clears min_peak and min_contrast against the darker of the profile reach_ rows to either
+    // side, as Evaluate's first test does.
+    auto peaks_in = [&](int lo, int hi, bool skip_band) {
+      for (int r = std::max(lo, 0); r <= std::min(hi, p_.height - 1); ++r) {
+        if (r == main.rp || (skip_band && r >= rlo && r <= rhi) || !Inside(u, r)) continue;
+        const int g = at(r);
+        if (g < o_.min_peak || (r > 0 && at(r - 1) >= g) || (r + 1 < p_.height && at(r + 1) > g)) {
           continue;
         }
+        int side = std::numeric_limits<int>::max();
+        if (r - reach_ >= 0) side = at(r - reach_);
+        if (r + reach_ < p_.height) side = std::min(side, at(r + reach_));
+        if (side != std::numeric_limits<int>::max() && g - side < o_.min_contrast) continue;
+        consider(r);
       }
-      if (IsNone(gmax, u)) {
-        SetResult(u, StripeStatus::kNone, gmax, 0, kNaN);
-        continue;
+    };
+    peaks_in(rlo, rhi, false);
+    int w_lo = 0, w_hi = num_blocks_ - 1;
+    if (window_ != nullptr) WindowBlocks(u, &w_lo, &w_hi);
+    if (w_.ridge_count[u] >= 2 || (w_.ridge_count[u] == 1 && w_.ridge_block[u] != seed_block) ||
+        window_ != nullptr) {
+      for (int b = w_lo; b <= w_hi; ++b) {
+        if (b >= blo && b <= bhi) continue;
+        const int r = RidgeAt(u, b);
+        if (r < RidgeFloor() || r <= RidgeAt(u, b - 1) || r < RidgeAt(u, b + 1)) continue;
+        const int r0 = b * block_rows_;
+        const int r1 = std::min(p_.height, r0 + block_rows_) - 1;
+        int best = r0;
+        for (int rr = r0 + 1; rr <= r1; ++rr) {
+          if (at(rr) > at(best)) best = rr;
+        }
+        consider(best);
       }
-      const T kint = w_.kint[c];
-      const int rp = rlo + w_.argrow[c];
-      const T* col = tile + c - static_cast<ptrdiff_t>(rlo) * n;  // col[r * n] = m(u, r)
-      // The contiguous run above K around the maximum; dips below K shorter than
-      // min_peak_separation_px are noise inside one stripe and are bridged.
-      bool edge = false;
-      int re = rp;
-      for (int r = rp + 1, gap = 0;; ++r) {
-        if (r > rhi) {
-          edge = rhi < p_.height - 1;
+    }
+    // Nothing valid yet: the brightest value outside the band (a defect the median removes can
+    // hold the column's brightest block, and two stripes 2 blocks apart hide each other's
+    // ridges).
+    if (std::none_of(found.begin(), found.end(),
+                     [](const Candidate& c) { return c.status == StripeStatus::kValid; })) {
+      int row = -1;
+      const T floor = static_cast<T>(std::max(0, main.gmax));
+      if (MaxOutside(u, blo, bhi, w_lo, w_hi, floor, &row) > main.gmax && row >= 0) {
+        consider(row);
+      }
+    }
+    // Around each stripe found outside the band, as the band is around the candidate.
+    collect_offband = false;
+    for (size_t i = 0; i < offband.size(); ++i) {
+      const int r = offband[i];
+      peaks_in(r - near_rows, r + near_rows, true);
+    }
+    const Candidate* chosen = nullptr;
+    const StripeStatus verdict = Verdict(found, &chosen);
+    if (verdict == StripeStatus::kTwoPeaks || verdict == StripeStatus::kSaturated) {
+      SetResult(u, verdict, main.gmax, main.re - main.rs + 1, kNaN);
+      if (verdict == StripeStatus::kSaturated) {  // where the clipped peak is
+        for (const Candidate& c : found) {
+          if (c.status != StripeStatus::kSaturated) continue;
+          w_.evidence[u] = 0.5f * static_cast<float>(c.rs + c.re);
           break;
         }
-        if (col[r * n] > kint) {
-          re = r;
-          gap = 0;
-          if (re - rp >= o_.max_width_px) break;
-        } else if (++gap >= o_.min_peak_separation_px) {
-          break;
+      }
+      return;
+    }
+    if (chosen == nullptr) {
+      SetResult(u, main.status, main.gmax, main.re - main.rs + 1, kNaN);
+      return;
+    }
+    const int base = std::max(0, static_cast<int>(std::lround(chosen->base)));
+    SetResult(u, StripeStatus::kValid, chosen->gmax, chosen->re - chosen->rs + 1,
+              static_cast<float>(chosen->center), std::min(base, chosen->gmax),
+              static_cast<float>(chosen->sigma));
+    w_.widths[u] = static_cast<float>(chosen->width);
+    w_.evidence[u] = static_cast<float>(chosen->center);
+  }
+
+  // The scan line's valid candidates weighed: a peak much wider than the narrowest is a lit
+  // surface or a blurred reflection, not the beam (the beam is the sharpest light of the
+  // scene); of the others, peaks whose runs lie within min_peak_separation_px of the strongest
+  // are that stripe, and any other at least second_peak_ratio of its contrast is a second
+  // stripe: kTwoPeaks. A clipped peak (saturated) may be the stripe too: beside a valid one it
+  // makes two peaks, alone the scan line is kSaturated. Else kValid with *chosen the
+  // strongest, or kNone with no candidate.
+  StripeStatus Verdict(const std::vector<Candidate>& all, const Candidate** chosen) const {
+    *chosen = nullptr;
+    std::vector<Candidate>& found = valid_;
+    found.clear();
+    bool clipped = false;
+    for (const Candidate& c : all) {
+      if (c.status == StripeStatus::kValid) found.push_back(c);
+      clipped = clipped || c.status == StripeStatus::kSaturated;
+    }
+    if (found.empty()) return clipped ? StripeStatus::kSaturated : StripeStatus::kNone;
+    if (clipped) return StripeStatus::kTwoPeaks;
+    double narrowest = std::numeric_limits<double>::infinity();
+    for (const Candidate& c : found) narrowest = std::min(narrowest, c.width);
+    const double limit = kMaxWidthRatio * narrowest + kWidthSlackPx;
+    const Candidate* best = nullptr;
+    for (const Candidate& c : found) {
+      if (c.width <= limit && (best == nullptr || c.contrast > best->contrast)) best = &c;
+    }
+    const int sep = o_.min_peak_separation_px;
+    for (const Candidate& c : found) {
+      if (&c == best || c.width > limit) continue;
+      const bool same = c.rs <= best->re + sep && c.re >= best->rs - sep;
+      if (!same && c.contrast >= o_.second_peak_ratio * best->contrast) {
+        return StripeStatus::kTwoPeaks;
+      }
+    }
+    *chosen = &*std::find_if(all.begin(), all.end(),
+                             [&](const Candidate& c) { return c.rp == best->rp; });
+    return StripeStatus::kValid;
+  }
+
+  // The window's rows for scan line u, as blocks; false if the window excludes the line.
+  bool WindowBlocks(int u, int* b_lo, int* b_hi) const {
+    const float lo = window_->lo[u], hi = window_->hi[u];
+    if (std::isnan(lo) || std::isnan(hi)) return true;
+    const int r_lo = std::max(0, static_cast<int>(std::floor(lo)));
+    const int r_hi = std::min(p_.height - 1, static_cast<int>(std::ceil(hi)));
+    if (r_lo > r_hi) return false;
+    *b_lo = r_lo / block_rows_;
+    *b_hi = r_hi / block_rows_;
+    return true;
+  }
+
+  // Whether row r of scan line u lies in the window (always, without one).
+  bool Inside(int u, int r) const {
+    if (window_ == nullptr) return true;
+    const float lo = window_->lo[u], hi = window_->hi[u];
+    return std::isnan(lo) || std::isnan(hi) || (r >= lo && r <= hi);
+  }
+
+  // The highest ridge of column u among blocks b_lo..b_hi, or their brightest block.
+  int BestBlockIn(int u, int b_lo, int b_hi) const {
+    int best = -1, best_r = 0, bright = b_lo;
+    for (int b = b_lo; b <= b_hi; ++b) {
+      const int r = RidgeAt(u, b);
+      if (r > best_r) best_r = r, best = b;
+      if (w_.blocks[static_cast<size_t>(b) * p_.width + u] >
+          w_.blocks[static_cast<size_t>(bright) * p_.width + u]) {
+        bright = b;
+      }
+    }
+    return best >= 0 ? best : bright;
+  }
+
+  // The stripe is one beam seen by one camera: its width changes slowly along it. A valid
+  // column much wider than the frame's stripe (or the width the options give) is a stripe
+  // merged with something else.
+  void WidthTest() {
+    double expected = o_.expected_width_px;
+    if (!(expected > 0)) {
+      std::vector<float>& sorted = w_.sorted_widths;
+      sorted.clear();
+      for (float x : w_.widths) {
+        if (!std::isnan(x)) sorted.push_back(x);
+      }
+      if (sorted.size() < kMinWidthSample) return;
+      const auto middle = sorted.begin() + static_cast<ptrdiff_t>(sorted.size() / 2);
+      std::nth_element(sorted.begin(), middle, sorted.end());
+      expected = *middle;
+    }
+    const double limit = kMaxWidthRatio * expected + kWidthSlackPx;
+    for (int u = 0; u < p_.width; ++u) {
+      if (w_.widths[u] > limit) Refuse(u);
+    }
+  }
+
+  void Refuse(int u) {
+    w_.evidence[u] = kNaN;
+    res_->status[u] = StripeStatus::kBadShape;
+    res_->center[u] = kNaN;
+    res_->sigma_px[u] = kNaN;
+    res_->base[u] = 0;
+  }
+
+  // A surface seen by neighbouring scan lines is continuous but at its edges, and an edge
+  // parts two runs of centres that each agree. A centre more than kIsolatedPx from where the
+  // stripe is on both its sides while those agree with each other is light from somewhere else
+  // (a reflection where the stripe itself is too faint to see, beside a glint): not valid.
+  // Each side: the median of where the nearest kIsolatedReach scan lines see the stripe (valid
+  // centres, and the peaks of saturated ones: clipped, but there), at least one. Repeated
+  // until nothing changes (a run of two such centres).
+  void IsolationTest() {
+    const int n = p_.width;
+    std::vector<float>& refuse = w_.sorted_widths;  // scratch
+    auto side_median = [&](int u, int dir, float* out) {
+      float vals[kIsolatedReach];
+      int k = 0;
+      for (int i = 1; i <= kIsolatedReach; ++i) {
+        const int x = u + dir * i;
+        if (x < 0 || x >= n) break;
+        if (std::isnan(w_.evidence[x])) continue;
+        // Insertion into the sorted few.
+        int j = k++;
+        for (; j > 0 && vals[j - 1] > w_.evidence[x]; --j) vals[j] = vals[j - 1];
+        vals[j] = w_.evidence[x];
+      }
+      if (k < 1) return false;
+      *out = k % 2 ? vals[k / 2] : 0.5f * (vals[k / 2 - 1] + vals[k / 2]);
+      return true;
+    };
+    for (int round = 0; round < kIsolatedReach; ++round) {
+      refuse.assign(static_cast<size_t>(n), 0.0f);
+      bool any = false;
+      for (int u = 0; u < n; ++u) {
+        if (res_->status[u] != StripeStatus::kValid) continue;
+        float left = 0, right = 0;
+        if (!side_median(u, -1, &left) || !side_median(u, 1, &right)) continue;
+        const float c = res_->center[u];
+        if (std::abs(left - right) <= kIsolatedPx && std::abs(c - left) > kIsolatedPx &&
+            std::abs(c - right) > kIsolatedPx) {
+          refuse[u] = 1.0f;
+          any = true;
         }
       }
-      int rs = rp;
-      for (int r = rp - 1, gap = 0;; --r) {
-        if (r < rlo) {
-          edge = edge || rlo > 0;
-          break;
-        }
-        if (col[r * n] > kint) {
-          rs = r;
-          gap = 0;
-          if (rp - rs >= o_.max_width_px) break;
-        } else if (++gap >= o_.min_peak_separation_px) {
-          break;
+      if (!any) break;
+      for (int u = 0; u < n; ++u) {
+        if (refuse[u] > 0) {
+          Refuse(u);
+          w_.evidence[u] = kNaN;
         }
       }
-      const int run = re - rs + 1;
-      if (edge && run <= o_.max_width_px && margin < wide_margin_) {
-        w_.retry.emplace_back(u, -1);
-        continue;
-      }
-      // Gray centroid of the run, seed 000 eq. (7): U = sum(g_i * u_i) / sum(g_i), g the
-      // filtered profile; the raw pixels of the run are checked for saturation.
-      bool saturated = false;
-      int run_above = 0;
-      double s0 = 0.0;
-      double s1 = 0.0;
-      const uint8_t* raw = p_.base + sizeof(T) * u;
-      if (o_.subtract_threshold) {
-        const double kf = k * gmax;
-        for (int r = rs; r <= re; ++r) {
-          const T g = col[r * n];
-          saturated |= *reinterpret_cast<const T*>(raw + r * p_.stride) >= saturation_;
-          run_above += g > kint;
-          const double weight = std::max(g - kf, 0.0);
-          s0 += weight;
-          s1 += weight * (r - rp);
-        }
-      } else {
-        // Integer sums: exact, and the common case is worth keeping cheap.
-        int64_t i0 = 0;
-        int64_t i1 = 0;
-        for (int r = rs; r <= re; ++r) {
-          const T g = col[r * n];
-          saturated |= *reinterpret_cast<const T*>(raw + r * p_.stride) >= saturation_;
-          run_above += g > kint;
-          i0 += g;
-          i1 += static_cast<int64_t>(g) * (r - rp);
-        }
-        s0 = static_cast<double>(i0);
-        s1 = static_cast<double>(i1);
-      }
-      StripeStatus status = StripeStatus::kValid;
-      if (saturated) {
-        status = StripeStatus::kSaturated;
-      } else if (run > o_.max_width_px) {
-        status = StripeStatus::kTooWide;
-      } else if (w_.above[c] > run_above || w_.farmax[c] > kint) {
-        // Another pixel above K in the band, at least min_peak_separation_px from the run, or
-        // possibly outside the band (the bound): two peaks if it belongs to a stripe-like run.
-        if (SecondStripe(u, rs, re, kint, gmax)) status = StripeStatus::kTwoPeaks;
-      }
-      if (status == StripeStatus::kValid && !(s0 > 0.0)) status = StripeStatus::kNone;
-      const float center = status == StripeStatus::kValid ? static_cast<float>(rp + s1 / s0) : kNaN;
-      int base = 0;
-      if (status == StripeStatus::kValid) {
-        // The local background: filtered level kBaseOffset rows beyond the run's ends (the
-        // darker side, in case the other holds something else).
-        const int lo = std::max(rs - kBaseOffset, 0), hi = std::min(re + kBaseOffset, p_.height - 1);
-        auto m = [&](int r) { return r >= rlo && r <= rhi ? col[r * n] : ExactAt(u, r); };
-        base = std::min(m(lo), m(hi));
-      }
-      SetResult(u, status, gmax, run, center, base);
     }
   }
 
@@ -892,7 +1233,11 @@ class ColumnExtractor {
   bool median_ = true;
   int block_rows_ = kMinBlockRows;
   int num_blocks_ = 0;
-  int wide_margin_ = 2;
+  int ridge_blocks_ = 2;
+  int reach_ = 10;
+  const StripeWindow* window_;
+  std::vector<Candidate> cands_;
+  mutable std::vector<Candidate> valid_;  // Verdict's scratch
 };
 
 // kRows is run as kColumns on the transposed frame: simple and exactly equivalent; the transpose
@@ -970,7 +1315,7 @@ Plane<T> MakePlane(const ImageView& image) {
 
 template <typename T>
 void ExtractTyped(const ImageView& image, StripeDirection direction, const StripeOptions& options,
-                  Work<T>& work, StripeResult* result) {
+                  Work<T>& work, StripeResult* result, const StripeWindow* window) {
   Plane<T> plane = MakePlane<T>(image);
   if (direction == StripeDirection::kRows) {
     Transpose(plane, &work.transposed);
@@ -982,7 +1327,7 @@ void ExtractTyped(const ImageView& image, StripeDirection direction, const Strip
   // Saturation is judged on the raw samples, in the image's own scale (12-bit: 4095).
   const int saturation =
       options.saturation_level > 0 ? options.saturation_level : image.max_value();
-  ColumnExtractor<T> extractor(plane, options, saturation, work, result);
+  ColumnExtractor<T> extractor(plane, options, saturation, work, result, window);
   extractor.Run();
 }
 
@@ -994,7 +1339,7 @@ int SampleAt(const Plane<T>& p, int u, int v) {
 }
 
 template <typename T>
-StripeDirection EstimateTyped(const Plane<T>& p) {
+StripeDirection EstimateTyped(const Plane<T>& p, int max_value) {
   // About 160 samples along the longer side (the same step in u and v keeps angles): enough for
   // the axis of a stripe, and ~20k samples on a 5 MP frame keep kAuto cheap next to Extract.
   const int step = std::max(1, std::max(p.width, p.height) / 160);
@@ -1011,14 +1356,25 @@ StripeDirection EstimateTyped(const Plane<T>& p) {
     }
   }
   if (count == 0) return StripeDirection::kColumns;
-  // "Bright": above half-way between the mean level (the background, the stripe being a small
-  // part of the frame) and the maximum: s > (mean + max) / 2, in integers.
-  const int64_t lhs_scale = 2 * count;
-  const int64_t rhs = sum + count * vmax;
+  // The stripe's samples: ridges, brighter by a third of the way from the mean level to the
+  // maximum than the frame kRidgeRows / 2 pixels away on both sides, across or along (a
+  // line's samples are ridges across it). A lit face, a white board or a label wider than
+  // that, however bright, has none inside, and its edges are steps, not ridges.
+  const int d = kRidgeRows / 2;
+  const double mean = static_cast<double>(sum) / count;
+  const double floor = std::max((vmax - mean) / 3.0, 0.03 * max_value);
+  auto ridge = [&](int u, int v) {
+    const int s = SampleAt(p, u, v);
+    const auto at = [&](int uu, int vv) {
+      return uu < 0 || vv < 0 || uu >= p.width || vv >= p.height ? 0 : SampleAt(p, uu, vv);
+    };
+    return s - std::max(at(u, v - d), at(u, v + d)) >= floor ||
+           s - std::max(at(u - d, v), at(u + d, v)) >= floor;
+  };
   int64_t n = 0, sx = 0, sy = 0, sxx = 0, syy = 0;
   for (int v = off; v < p.height; v += step) {
     for (int u = off; u < p.width; u += step) {
-      if (lhs_scale * SampleAt(p, u, v) <= rhs) continue;
+      if (!ridge(u, v)) continue;
       ++n;
       sx += u;
       sy += v;
@@ -1051,6 +1407,8 @@ const char* StripeStatusName(StripeStatus status) {
     case StripeStatus::kSaturated: return "saturated";
     case StripeStatus::kTwoPeaks: return "two_peaks";
     case StripeStatus::kTooWide: return "too_wide";
+    case StripeStatus::kBadShape:
+      return "bad_shape";
   }
   return "unknown";
 }
@@ -1094,6 +1452,11 @@ Status StripeOptions::Validate() const {
   if (min_peak_separation_px < 1 || min_peak_separation_px > 255) {
     return InvalidArgument("min_peak_separation_px must be in [1, 255], got " +
                            std::to_string(min_peak_separation_px));
+  }
+  if (!(expected_width_px >= 0.0) || !std::isfinite(expected_width_px) ||
+      expected_width_px > 255.0) {
+    return InvalidArgument("expected_width_px must be in [0, 255] (0: the frame's own), got " +
+                           Num(expected_width_px));
   }
   if (saturation_level < 0 || saturation_level > 65535) {
     return InvalidArgument("saturation_level must be in [0, 65535] (0: full scale), got " +
@@ -1146,17 +1509,30 @@ Status CheckImage(const ImageView& image) {
 
 }  // namespace
 
-Status StripeExtractor::Extract(const ImageView& image, StripeResult* result) {
+Status StripeExtractor::Extract(const ImageView& image, StripeResult* result,
+                                const StripeWindow* window) {
   INSITU_RETURN_IF_ERROR(options_.Validate().Prefixed("StripeOptions"));
   if (result == nullptr) return InvalidArgument("Extract: result is null");
   INSITU_RETURN_IF_ERROR(CheckImage(image));
   StripeDirection direction = options_.direction;
+  if (window != nullptr) {
+    if (direction == StripeDirection::kAuto) {
+      return InvalidArgument("a stripe window needs the direction (columns or rows), not auto");
+    }
+    const size_t lines =
+        static_cast<size_t>(direction == StripeDirection::kColumns ? image.width : image.height);
+    if (window->lo.size() != lines || window->hi.size() != lines) {
+      return InvalidArgument("the stripe window has " + std::to_string(window->lo.size()) +
+                             " and " + std::to_string(window->hi.size()) + " limits for " +
+                             std::to_string(lines) + " scan lines");
+    }
+  }
   if (direction == StripeDirection::kAuto) direction = EstimateStripeDirection(image);
   result->direction = direction;
   if (image.is_8bit()) {
-    ExtractTyped<uint8_t>(image, direction, options_, scratch_->w8, result);
+    ExtractTyped<uint8_t>(image, direction, options_, scratch_->w8, result, window);
   } else {
-    ExtractTyped<uint16_t>(image, direction, options_, scratch_->w16, result);
+    ExtractTyped<uint16_t>(image, direction, options_, scratch_->w16, result, window);
   }
   return Status::Ok();
 }
@@ -1169,8 +1545,8 @@ Result<ImageView> StripePlane(const ImageView& image, ColourChannel channel, Ima
 
 StripeDirection EstimateStripeDirection(const ImageView& image) {
   if (!CheckImage(image).ok()) return StripeDirection::kColumns;
-  if (image.is_8bit()) return EstimateTyped(MakePlane<uint8_t>(image));
-  return EstimateTyped(MakePlane<uint16_t>(image));
+  if (image.is_8bit()) return EstimateTyped(MakePlane<uint8_t>(image), image.max_value());
+  return EstimateTyped(MakePlane<uint16_t>(image), image.max_value());
 }
 
 }  // namespace insitu::vision

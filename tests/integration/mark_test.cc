@@ -98,7 +98,10 @@ TEST(MarkJob, InSituDemoMarksInFocusAndVerifies) {
   for (const sim::MarkPulse& p : pulses) {
     worst_defocus = std::max(worst_defocus, std::abs(p.defocus_mm));
     off_part += !p.on_part;
-    const double r = 0.5 * p.diameter_mm + 0.05;  // crater radius + placement tolerance
+    // Crater radius + the placement bound above (0.1 mm): a pattern's corner far from its
+    // centre moves by the placement and the draping over the measured surface together, and
+    // a stray pulse (the laser on during a jump, a pattern in the wrong place) lies mm away.
+    const double r = 0.5 * p.diameter_mm + 0.1;
     bool inside = false;
     for (const Item& it : items) {
       const Eigen::Vector2d q = local(p.point_in_world, it);

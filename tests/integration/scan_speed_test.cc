@@ -255,13 +255,15 @@ TEST(ScanSpeed, TheBandMeasuresWhatTheWholeSensorDoes) {
   for (const geometry::CloudPoint& p : runs[1].cloud) {
     const auto it = whole.find({p.line, p.pixel_u});
     if (it == whole.end()) continue;
-    // The same pixels give the same centre up to where a run's ends fall relative to the
-    // frame's first row (the extractor re-examines runs near a frame edge): a few um here,
-    // far below the stripe's own noise (0.15 px at 0.16 mm/px binned, ~0.024 mm).
-    EXPECT_LT((it->second - p.point_in_galvo).norm(), 0.005f)
+    // The same pixels give the same centre up to where the sweep was when each exposure
+    // began (the band's frames cross the link sooner, so each line starts at another phase):
+    // a gray level more or less at a stripe's peak here and there, which moves a centre by
+    // ~1 / 40 px (the weights above K sum to ~40 levels), ~0.02 px, ~5 um with the lever of
+    // the height; far below the stripe's own noise (0.15 px at 0.16 mm/px binned, ~0.024 mm).
+    EXPECT_LT((it->second - p.point_in_galvo).norm(), 0.010f)
         << "line " << p.line << " u " << p.pixel_u << " v " << p.pixel_v << " (band from row "
-        << runs[1].stats.region_first_row << "; whole sensor: "
-        << whole_v[{p.line, p.pixel_u}] << ")";
+        << runs[1].stats.region_first_row << "; whole sensor: " << whole_v[{p.line, p.pixel_u}]
+        << ")";
     ++same;
   }
   // Every band point has its twin; the whole sensor may add a few outside the band (light

@@ -1,9 +1,10 @@
 #include "insitu/sim/world.h"
 
+#include <gtest/gtest.h>
+
+#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
-
-#include <gtest/gtest.h>
 
 namespace insitu::sim {
 namespace {
@@ -137,6 +138,152 @@ TEST(SimWorld, SameSeedSameFrame) {
     ASSERT_TRUE(w->StartPointerLine({0, -30, 0}, {0, 30, 0}, 5000).ok());
   }
   EXPECT_EQ(a.Grab()->bytes, b.Grab()->bytes);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The shop floor's light (each off by default).
+
+// The gray level at a world point of a noise-free full-resolution frame (the pixel it projects
+// to, averaged over 3 x 3 for the rounding).
+double LevelAt(const SimWorld& w, const Frame& f, const Eigen::Vector3d& p) {
+  Eigen::Vector2d px;
+  EXPECT_TRUE(w.true_camera().Project(p, &px));
+  double sum = 0;
+  for (int dv = -1; dv <= 1; ++dv) {
+    for (int du = -1; du <= 1; ++du) {
+      sum += f.at(static_cast<int>(std::lround(px.x())) + du,
+                  static_cast<int>(std::lround(px.y())) + dv);
+    }
+  }
+  return sum / 9.0;
+}
+
+WorldOptions Quiet() {
+  WorldOptions o;
+  o.part.kind = "none";
+  o.camera.noise = false;
+  o.light.speckle_contrast = 0.0;
+  o.light.ambient_lux = 0.0;
+  return o;
+}
+
+// A lamp: illuminance lamp_lux at the origin, falling as the squared distance and the cosine
+// of incidence. On the flat plate lit from (-300, 0, 300), the levels at x = -60 and x = +60
+// stand in the ratio of E = L (d0 / d)^2 cos(incidence) at the two points (1.52).
+TEST(SimWorld, ALampLightsAsTheInverseSquareAndTheCosine) {
+  WorldOptions o = Quiet();
+  o.light.lamp_position_mm = {-300.0, 0.0, 300.0};
+  o.light.lamp_lux = 3000.0;
+  o.stage.plate_albedo = 0.5;
+  SimWorld w(o);
+  ASSERT_TRUE(w.SetExposure(20000).ok());
+  auto f = w.Grab();
+  ASSERT_TRUE(f.ok());
+  const Eigen::Vector3d lamp(-300, 0, 300);
+  auto expected = [&](const Eigen::Vector3d& p) {
+    const Eigen::Vector3d l = lamp - p;
+    return lamp.squaredNorm() / l.squaredNorm() * l.normalized().z();
+  };
+  const Eigen::Vector3d a(-60, 0, 0), b(60, 0, 0);
+  const double la = LevelAt(w, *f, a), lb = LevelAt(w, *f, b);
+  ASSERT_GT(lb, 20.0);
+  ASSERT_LT(la, 250.0);
+  // The camera's cos^4 falloff differs by under 1 % between the two (both near its axis);
+  // rounding 0.5 DN of ~50.
+  EXPECT_NEAR(la / lb, expected(a) / expected(b), 0.03 * expected(a) / expected(b));
+}
+
+// A label on the plate reflects as its albedo says: 0.85 against the plate's 0.12 under the
+// same room light.
+TEST(SimWorld, ALabelOnThePlateShowsItsAlbedo) {
+  WorldOptions o = Quiet();
+  o.light.ambient_lux = 3000.0;
+  o.stage.labels = {{20.0, 0.0, 20.0, 20.0, 0.85}};
+  SimWorld w(o);
+  ASSERT_TRUE(w.SetExposure(20000).ok());
+  auto f = w.Grab();
+  ASSERT_TRUE(f.ok());
+  const double label = LevelAt(w, *f, {20, 0, 0}), plate = LevelAt(w, *f, {-20, 0, 0});
+  ASSERT_GT(plate, 10.0);
+  EXPECT_NEAR(label / plate, 0.85 / 0.12, 0.1 * 0.85 / 0.12);  // cos^4 and rounding
+}
+
+// A glossy part mirrors the pointer: on the arc's flank the mirrored beam leaves toward the
+// camera where the surface tilts half the camera's angle (a glint: saturated), and a matte
+// part of the same albedo shows no such spot.
+TEST(SimWorld, AGlossyPartGlints) {
+  WorldOptions o = Quiet();
+  o.part.kind = "arc";
+  o.part.albedo = 0.3;
+  auto peak = [](const WorldOptions& opts) {
+    SimWorld w(opts);
+    EXPECT_TRUE(w.SetExposure(5000).ok());
+    EXPECT_TRUE(w.StartPointerLine({-7.4, -15, 0}, {-7.4, 15, 0}, 5000).ok());
+    w.Advance(0.005);
+    auto f = w.Grab();
+    return static_cast<int>(*std::max_element(f->bytes.begin(), f->bytes.end()));
+  };
+  const int matte = peak(o);
+  o.part.specular = 0.5;
+  const int glossy = peak(o);
+  EXPECT_LT(matte, 120);
+  EXPECT_EQ(glossy, 255);
+}
+
+// Interreflection: the pointer's spot lights the surfaces facing it. On the step gauge, with
+// the line along its top steps, the walls beside the line gain light the matte single bounce
+// does not give them, a few percent of the stripe's own level (E ~ albedo (P T / L) / (pi d)
+// per unit area at d from the line, against P T / L over the stripe's ~0.25 mm).
+TEST(SimWorld, InterreflectionLightsFacingSurfaces) {
+  WorldOptions o = Quiet();
+  o.part.kind = "step_gauge";
+  o.part.albedo = 0.9;
+  auto frame = [](const WorldOptions& opts) {
+    SimWorld w(opts);
+    EXPECT_TRUE(w.StartPointerLine({3, -40, 0}, {3, 40, 0}, 5000).ok());
+    w.Advance(0.005);
+    auto f = w.Grab();
+    return *f;
+  };
+  const Frame single = frame(o);
+  o.light.interreflection = true;
+  const Frame twice = frame(o);
+  int brighter = 0, darker = 0;
+  int stripe_max = 0, glow_max = 0;
+  for (size_t i = 0; i < single.bytes.size(); ++i) {
+    stripe_max = std::max<int>(stripe_max, single.bytes[i]);
+    const int d = static_cast<int>(twice.bytes[i]) - single.bytes[i];
+    brighter += d > 0;
+    darker += d < 0;
+    glow_max = std::max(glow_max, d);
+  }
+  EXPECT_EQ(darker, 0);       // light only adds
+  EXPECT_GT(brighter, 1000);  // over an area, not a line
+  EXPECT_GE(glow_max, 2);
+  EXPECT_LT(glow_max, stripe_max / 5);
+}
+
+// A colour camera's mosaic: the pointer's red line shows in the red pixels at ~9x the green
+// and ~18x the blue (the filters' passes for 680 nm).
+TEST(SimWorld, AColourCameraSeesTheRedLineThroughItsRedFilters) {
+  WorldOptions o = Quiet();
+  o.part.kind = "plane";
+  o.camera.pixel_format = "BayerRG";
+  SimWorld w(o);
+  ASSERT_TRUE(w.StartPointerLine({0, -30, 0}, {0, 30, 0}, 5000).ok());
+  w.Advance(0.005);
+  auto f = w.Grab();
+  ASSERT_TRUE(f.ok());
+  EXPECT_EQ(f->format, PixelFormat::kBayerRG);
+  double sum[3] = {0, 0, 0};
+  for (int v = 0; v < f->height; ++v) {
+    for (int u = 0; u < f->width; ++u) {
+      const int filter = (v % 2 == 0) ? (u % 2 == 0 ? 0 : 1) : (u % 2 == 0 ? 1 : 2);
+      sum[filter] += f->at(u, v) * (filter == 1 ? 0.5 : 1.0);  // two greens per quad
+    }
+  }
+  EXPECT_NEAR(sum[0] / sum[1], 0.9 / 0.10, 0.15 * 0.9 / 0.10);
+  EXPECT_NEAR(sum[0] / sum[2], 0.9 / 0.05, 0.2 * 0.9 / 0.05);
 }
 
 TEST(WorldOptions, ValidateNamesTheField) {

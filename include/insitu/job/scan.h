@@ -61,6 +61,12 @@ struct ScanOptions {
   // A camera without regions reads its whole sensor (a warning says so).
   bool region = true;
   std::array<double, 2> height_range_mm{-20.0, 20.0};
+  // A directory for each line's frame as the camera gave it (line_NNNN.png) and the
+  // extraction drawn over the plane it read, over the window's span (line_NNNN_stripe.png: the
+  // light plane's window in blue, valid centres in green, refused scan lines marked by status
+  // just above the window);
+  // empty: none. The scan job's `output.save_frames` sets it to the job's `frames/`.
+  std::string frames_dir;
 
   Status Validate() const;
   int line_count() const;
@@ -70,7 +76,7 @@ struct ScanOptions {
 struct ScanStats {
   int lines = 0;
   int64_t scan_lines_examined = 0;  // columns (or rows) over all frames
-  int64_t valid = 0, none = 0, saturated = 0, two_peaks = 0, too_wide = 0;
+  int64_t valid = 0, none = 0, saturated = 0, two_peaks = 0, too_wide = 0, bad_shape = 0;
   int64_t rejected_geometry = 0;     // valid centre whose ray misses the light plane
   int64_t outside_lookup = 0;        // method 2: centre outside the calibrated volume
   double machine_time_s = 0.0;       // on the machine's clock: first line to last frame taken
@@ -98,6 +104,15 @@ struct ScanOutput {
   geometry::Cloud cloud_method1;  // method 2 only: the same centres reconstructed by method 1
   ScanStats stats;
 };
+
+// Where line i's stripe can lie in a frame of width x height binned pixels whose first pixel is
+// (offset_x, offset_y) of the binned sensor: per scan line of `direction` (kColumns: each
+// column's rows), the span of the line's light plane over height_range_mm, projected through
+// the calibration, with a margin for the pointer's landing off the calibrated plane (~8
+// full-sensor pixels). The extraction takes no peak outside it for the stripe.
+vision::StripeWindow LineStripeWindow(const ScanOptions& o, const calib::CalibrationSet& cal,
+                                      vision::StripeDirection direction, int i, int width,
+                                      int height, int offset_x, int offset_y);
 
 // The per-frame path of a scan, as the scan runs it and bench/scan_pipeline_bench times it:
 // stripe centres (seed 000 eq. 7), undistorted rays, the line's light plane (eq. 1-4), method

@@ -89,6 +89,8 @@ class Scene {
   // camera). The kernel is taken square to the part: the ~1 deg between the part and the
   // pixel grid changes its shape by a fraction of a um, not its centre.
   double PartAlbedoAt(double x_mm, double y_mm, double half_mm = 0.0) const;
+  // The stage plate's reflectance at world (x, y): its own, or a label's stuck there.
+  double PlateAlbedoAt(double x_mm, double y_mm) const;
   // World xy of cross (i, j) of the grid plate (i along the part's x, 0 at its centre): truth
   // for tests. The crosses are |i|, |j| <= grid_plate_crosses_per_side().
   Eigen::Vector2d GridCrossInWorld(int i, int j) const;

@@ -318,6 +318,14 @@ class SimWorld {
   FrameTruth truth_;
   // Ambient image (electrons per second per pixel), cached per stage height and binning.
   std::vector<float> ambient_e_per_s_;
+  // Interreflection (light.interreflection): the surface seen by every glow_step_-th pixel of
+  // each axis, and its electrons per second per W/m^2 of the pointer's light falling on it.
+  struct GlowPoint {
+    Eigen::Vector3f point, normal;
+    float e_per_s_per_w_m2 = 0.0f;
+  };
+  std::vector<GlowPoint> glow_grid_;
+  static constexpr int kGlowStep = 4;
   bool ambient_valid_ = false;
   double ambient_stage_z_ = 0.0;
   int ambient_binning_ = 0;

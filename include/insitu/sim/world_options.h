@@ -115,6 +115,10 @@ struct CameraOptions {
   double dark_current_e_per_s = 20.0;
   double gain_db = 0.0;
   int bit_depth = 8;                  // 8 or 12
+  // "Mono" or a colour sensor's mosaic: "BayerRG", "BayerGR", "BayerGB", "BayerBG". Its
+  // filters pass the pointer's red (590-700 nm) at 0.9 (red), 0.10 (green), 0.05 (blue) of
+  // the mono sensor's response, and white room light at 0.30, 0.40, 0.30.
+  std::string pixel_format = "Mono";
   double exposure_ms = 50.0;          // initial setting; jobs set their own
   bool noise = true;                  // shot, read and dark noise
   // The link a frame travels over after its exposure, MB/s (1e6 bytes): GigE's 125 MB/s less
@@ -135,6 +139,16 @@ struct LightOptions {
   double speckle_contrast = 0.2;     // std/mean of the stripe intensity from speckle
   double speckle_grain_px = 0.0;     // 0: from wavelength and f-number (1.22 lambda N)
   bool shadows = true;               // the part blocks the beam and the camera's view
+  // A lamp or a window beside the cell: a point source at lamp_position_mm (world, mm) giving
+  // lamp_lux on a surface facing it at the world's origin, falling with the square of the
+  // distance and the cosine of incidence (no shadows: the lamp lights every face turned to
+  // it). Room light on one side of the part, a gradient across the stripe. 0: none.
+  std::array<double, 3> lamp_position_mm{-300.0, 0.0, 300.0};
+  double lamp_lux = 0.0;
+  // The pointer's light scattered once more by the surfaces it lights: a spot's diffuse light
+  // falls on every surface facing it (cosines over the squared distance), strongest in a
+  // concave corner (a step's foot, a pocket), a glow beside the stripe. Off: one bounce only.
+  bool interreflection = false;
 
   Status Validate() const;
 };
@@ -145,6 +159,12 @@ struct PartOptions {
   std::array<double, 2> position_mm{0.0, 0.0};  // centre of the footprint on the stage
   double rotation_deg = 0.0;                    // about z
   double albedo = 0.45;                         // diffuse reflectance at 680 nm
+  // A glossy part (machined aluminium ~0.5, stainless ~0.4, a solder-masked board ~0.05): the
+  // fraction of the light reflected about the surface normal, in a lobe of specular_lobe_deg
+  // (1 sigma: a fine-turned face ~2, bead-blasted ~15). The camera sees a glint where the
+  // lobe points at it, and the mirrored beam lights the surface it reaches: a second line.
+  double specular = 0.0;
+  double specular_lobe_deg = 5.0;
   // Single-pulse ablation threshold of the part's material for the marking laser (ns pulses,
   // 1064 nm; steels 0.5..2 J/cm^2).
   double ablation_threshold_j_per_cm2 = 1.0;
@@ -241,6 +261,10 @@ struct StageOptions {
   // commanded z lands at z (1 + scale_error_ppm 1e-6). Its encoder counts the same screw, so
   // the position it reports is the commanded one.
   double scale_error_ppm = 0.0;
+  // Labels on the plate: [x, y, width, height, albedo] (mm, world; 0..1), a white sticker or
+  // a lit fixture beside the part (paper ~0.8): brighter than the stripe's surface under room
+  // light.
+  std::vector<std::array<double, 5>> labels;
 
   Status Validate() const;
 };

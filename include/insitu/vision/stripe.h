@@ -5,11 +5,27 @@
 // left-right, every row when it runs roughly top-bottom) the sub-pixel stripe centre, in pixel
 // coordinates of the same image, or the reason there is none.
 //
-// Method, per scan line: 3x3 median filter (only where the stripe is, see the .cc), the maximum
-// gray value gmax of the filtered profile, threshold K = k * gmax (0 < k < 1), the contiguous run
-// of filtered pixels above K around the maximum, and the gray centroid of that run
-// U = sum(g_i * u_i) / sum(g_i) (eq. 7). No centre is invented: a scan line with no stripe, a
-// saturated stripe or two separate stripes is reported as such.
+// Method, per scan line (seed 000 eq. 7, made to hold on real images):
+//  * filtering: a 3x3 median (only where a stripe may be, see the .cc);
+//  * the candidate: the stripe is a ridge, brighter than the profile on both sides of it; a lit
+//    surface, a white label or the edge between two surfaces is not. The scan line's candidate
+//    is its highest ridge (the brightest pixel only where there is none), at the local maximum
+//    of the filtered profile g;
+//  * the local background: two windows beside the run above K, as long as the run and half a
+//    run away, joined by a straight line b(v); the peak's height above it is the contrast A;
+//  * threshold K(v) = b(v) + k A (0 < k < 1), the contiguous run above K around the peak, and
+//    the centroid U = sum(w_i v_i) / sum(w_i) with w_i = g_i - K_i: the stripe's own light, so
+//    room light on the surface, a pedestal or a slope under the stripe does not pull it;
+//  * shape: the background may not step under the stripe by more than A, the centroid must lie
+//    mid-way between the run's crossings of K (a symmetric beam), and the width at K may not
+//    exceed 1.75 times the frame's stripe width (its median over the valid scan lines, or
+//    expected_width_px) plus 1.5 px;
+//  * one stripe only: any other run of the scan line that passes the same tests is a second
+//    stripe (a reflection, or the line on two surfaces): two_peaks, whatever its brightness
+//    (second_peak_ratio > 0 keeps the stronger when the other is that much weaker).
+// No centre is invented: a scan line with no stripe, a saturated stripe, two stripes or a peak of
+// the wrong shape is reported as such. Each valid centre carries its 1-sigma from the local
+// noise.
 #pragma once
 
 #include <cstdint>
@@ -31,10 +47,12 @@ enum class StripeDirection {
 
 enum class StripeStatus : uint8_t {
   kValid = 0,
-  kNone,        // no stripe: filtered peak below min_peak or contrast below min_contrast
-  kSaturated,   // the stripe reaches the sensor's full scale; its centroid is not trusted
-  kTwoPeaks,    // a second, separate, stripe-like run above K in the scan line (reflection)
-  kTooWide,     // the run above K is wider than max_width_px (blur, glare, not a stripe)
+  kNone,       // no stripe: filtered peak below min_peak or contrast below min_contrast
+  kSaturated,  // the stripe reaches the sensor's full scale; its centroid is not trusted
+  kTwoPeaks,   // a second, separate, stripe-like run above K in the scan line (reflection)
+  kTooWide,    // the run above K is wider than max_width_px (blur, glare, not a stripe)
+  kBadShape,   // a peak, but not a stripe's: lopsided, too wide for the frame's stripe, or on
+               // a step of the background (a surface edge under it)
 };
 
 const char* StripeStatusName(StripeStatus status);
@@ -52,16 +70,17 @@ struct StripeOptions {
   double min_contrast = 12.0;
   // A run above K wider than this is not a stripe.
   int max_width_px = 40;
-  // Runs above K separated by at least this many pixels below K count as two peaks...
+  // Dips below K shorter than this many pixels are noise inside one stripe and are bridged.
   int min_peak_separation_px = 3;
-  // ... when the other run is at most max_width_px long (longer: a lit surface, not a stripe)
-  // and peaks at this fraction of gmax or more (weaker: ambient light on a bright part beside a
-  // weak stripe on a dark surface; the brighter run is the stripe). 0 counts every other run.
-  double second_peak_ratio = 0.8;
+  // Another stripe-shaped peak in the scan line makes it two_peaks when its contrast is at least
+  // this fraction of the stronger one's; 0 (default): whatever its brightness (a reflection of
+  // the line is the same light, and its fraction says nothing about which is the surface).
+  double second_peak_ratio = 0.0;
+  // The stripe's width at K in pixels, for the shape test; 0: the median of the frame's valid
+  // scan lines (at least 16 of them, else no width test).
+  double expected_width_px = 0.0;
   // Raw pixel value counted as saturated; 0 means the image's full scale.
   int saturation_level = 0;
-  // Weight of pixel i in the centroid: gray value g_i (seed eq. 7) or g_i - K.
-  bool subtract_threshold = false;
   // A colour camera's frames are read in this channel (ReduceToStripePlane): the pointer's.
   ColourChannel colour_channel = ColourChannel::kRed;
 
@@ -79,16 +98,27 @@ struct StripeResult {
   std::vector<float> center;        // sub-pixel centre along the scan line; NaN if not valid
   std::vector<StripeStatus> status;
   std::vector<uint16_t> peak;       // filtered gmax of the scan line
-  // Valid scan lines: the filtered level 3 pixels beyond the run's ends (the lower side), the
-  // local background (ambient light on the surface) under the stripe; peak - base is the
-  // stripe's own signal. 0 elsewhere.
+  // Valid scan lines: the local background (room light on the surface) under the peak; peak -
+  // base is the stripe's own signal. 0 elsewhere.
   std::vector<uint16_t> base;
   std::vector<uint8_t> width_px;    // length of the run above K
+  // Valid scan lines: the centre's standard uncertainty (pixels) from the noise of the local
+  // background windows (the centroid's error propagation); NaN elsewhere. The scan's confidence
+  // in the point.
+  std::vector<float> sigma_px;
 
   int valid_count() const;
   // Pixel coordinates (u, v) of scan line i's centre (only meaningful when valid).
   double u(int i) const { return direction == StripeDirection::kColumns ? i : center[i]; }
   double v(int i) const { return direction == StripeDirection::kColumns ? center[i] : i; }
+};
+
+// Where the stripe may lie on each scan line: lo[i]..hi[i] along scan line i (rows of column i
+// for kColumns, columns of row i for kRows), in the image's pixels; NaN in either: anywhere.
+// The scan knows it from the light plane and the height range of its parts: a reflection or a
+// lit surface outside it is never taken for the stripe.
+struct StripeWindow {
+  std::vector<float> lo, hi;
 };
 
 // Reusable extractor: keeps its scratch buffers between frames (no allocation per frame once
@@ -100,8 +130,10 @@ class StripeExtractor {
   StripeExtractor(const StripeExtractor&) = delete;
   StripeExtractor& operator=(const StripeExtractor&) = delete;
 
-  // Errors: invalid_argument for an empty image or an unsupported bit depth.
-  Status Extract(const ImageView& image, StripeResult* result);
+  // Errors: invalid_argument for an empty image or an unsupported bit depth, or a window
+  // whose size is not the number of scan lines or with the direction left to kAuto.
+  Status Extract(const ImageView& image, StripeResult* result,
+                 const StripeWindow* window = nullptr);
 
   const StripeOptions& options() const { return options_; }
 
@@ -115,8 +147,10 @@ class StripeExtractor {
 // `scratch` (ReduceToChannel), which the returned view then shows. Errors: ReduceToChannel's.
 Result<ImageView> StripePlane(const ImageView& image, ColourChannel channel, Image* scratch);
 
-// Direction used by kAuto: principal axis of the pixels above half the image maximum, on a
-// subsampled copy. Returns kColumns when no bright pixel exists.
+// Direction used by kAuto: principal axis of the ridge pixels (brighter than the image 8 px
+// away on both sides, across or along), on a subsampled copy: a lit face or a white board has
+// none. Returns kColumns when there is no ridge. Image statistics only: a scan takes the
+// direction from its calibration instead.
 StripeDirection EstimateStripeDirection(const ImageView& image);
 
 }  // namespace insitu::vision
