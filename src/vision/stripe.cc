@@ -408,6 +408,30 @@ INSITU_INLINE void TileBody(const Plane<T>& p, int u0, int n, int rlo, int rhi, 
 // edge (a step), does not. Per column: the number of local maxima of R reaching `floor` (up to
 // 2: one stripe or more than one), the largest such R and its block.
 template <typename T>
+INSITU_INLINE void RidgeRow(const T* __restrict blocks, int num_blocks, int width, int d, int b,
+                            T* __restrict out) {
+  if (b < 0 || b >= num_blocks) {
+    std::fill_n(out, width, T{0});
+    return;
+  }
+  const T* __restrict m = blocks + static_cast<size_t>(b) * width;
+  const bool has_lo = b - d >= 0, has_hi = b + d < num_blocks;
+  if (has_lo && has_hi) {
+    const T* __restrict lo = blocks + static_cast<size_t>(b - d) * width;
+    const T* __restrict hi = blocks + static_cast<size_t>(b + d) * width;
+    for (int u = 0; u < width; ++u) {
+      const T side = Max(lo[u], hi[u]);
+      out[u] = static_cast<T>(Max(m[u], side) - side);  // m - side, 0 when negative
+    }
+  } else if (has_lo || has_hi) {
+    const T* __restrict one = blocks + static_cast<size_t>(has_lo ? b - d : b + d) * width;
+    for (int u = 0; u < width; ++u) out[u] = static_cast<T>(Max(m[u], one[u]) - one[u]);
+  } else {
+    std::copy_n(m, width, out);
+  }
+}
+
+template <typename T>
 INSITU_INLINE void RidgeBody(const T* __restrict blocks, int num_blocks, int width, int d, T floor,
                              T* __restrict prev, T* __restrict cur, T* __restrict next,
                              T* __restrict best, T* __restrict best_block,
@@ -415,38 +439,20 @@ INSITU_INLINE void RidgeBody(const T* __restrict blocks, int num_blocks, int wid
   std::fill_n(best, width, T{0});
   std::fill_n(best_block, width, T{0});
   std::fill_n(count, width, uint8_t{0});
-  auto ridge = [&](int b, T* __restrict out) INSITU_LAMBDA_INLINE {
-    if (b < 0 || b >= num_blocks) {
-      std::fill_n(out, width, T{0});
-      return;
-    }
-    const T* __restrict m = blocks + static_cast<size_t>(b) * width;
-    const T* __restrict lo = b - d >= 0 ? blocks + static_cast<size_t>(b - d) * width : nullptr;
-    const T* __restrict hi =
-        b + d < num_blocks ? blocks + static_cast<size_t>(b + d) * width : nullptr;
-    if (lo != nullptr && hi != nullptr) {
-      for (int u = 0; u < width; ++u) {
-        const T side = Max(lo[u], hi[u]);
-        out[u] = m[u] > side ? static_cast<T>(m[u] - side) : T{0};
-      }
-    } else {
-      const T* __restrict one = lo != nullptr ? lo : hi;
-      for (int u = 0; u < width; ++u) {
-        const T side = one != nullptr ? one[u] : T{0};
-        out[u] = m[u] > side ? static_cast<T>(m[u] - side) : T{0};
-      }
-    }
-  };
-  ridge(-1, prev);
-  ridge(0, cur);
+  RidgeRow(blocks, num_blocks, width, d, -1, prev);
+  RidgeRow(blocks, num_blocks, width, d, 0, cur);
   for (int b = 0; b < num_blocks; ++b) {
-    ridge(b + 1, next);
+    RidgeRow(blocks, num_blocks, width, d, b + 1, next);
     const T id = static_cast<T>(b);
+    // Branch-free over the row (the compiler vectorizes it): a local maximum of R reaching
+    // the floor counts (up to 2) and may be the best.
     for (int u = 0; u < width; ++u) {
-      const bool peak = cur[u] >= floor && cur[u] > prev[u] && cur[u] >= next[u];
-      count[u] = static_cast<uint8_t>(Min<int>(count[u] + peak, 2));
-      const bool better = peak && cur[u] > best[u];
-      best[u] = better ? cur[u] : best[u];
+      const T r = cur[u];
+      const bool peak = (r >= floor) & (r > prev[u]) & (r >= next[u]);
+      const uint8_t c = count[u];
+      count[u] = static_cast<uint8_t>(c + (peak & (c < 2)));
+      const bool better = peak & (r > best[u]);
+      best[u] = better ? r : best[u];
       best_block[u] = better ? id : best_block[u];
     }
     T* t = prev;
@@ -641,8 +647,9 @@ class ColumnExtractor {
     res_->sigma_px[u] = sigma;
   }
 
-  // Exact filtered value at one pixel (slow path).
-  T ExactAt(int u, int r) const {
+  // Exact filtered value at one pixel (slow path; kept out of line so the callers' accessors
+  // inline).
+  [[gnu::noinline]] T ExactAt(int u, int r) const {
     if (!median_) return p_.row(r)[u];
     const int ul = std::max(u - 1, 0);
     const int ur = std::min(u + 1, p_.width - 1);
@@ -960,7 +967,7 @@ class ColumnExtractor {
   // One column: its candidate in the band, any other stripe-like run in the band or at another
   // ridge of the column, and the verdict.
   void Decide(int u, const T* col, int n, int rlo, int rhi, int blo, int bhi, int seed_block) {
-    const auto at = [&](int r) -> int {
+    const auto at = [&](int r) INSITU_LAMBDA_INLINE -> int {
       return r >= rlo && r <= rhi ? col[static_cast<ptrdiff_t>(r) * n] : ExactAt(u, r);
     };
     // The seed: the brightest row of the seed block.
@@ -984,6 +991,11 @@ class ColumnExtractor {
     std::vector<int>& offband = w_.offband;
     offband.clear();
     bool collect_offband = true;  // one level: not around those found around them
+    // A peak inside the valid candidate's run (or within min_peak_separation_px of it) and no
+    // higher is part of that stripe (speckle on its flank): not another candidate.
+    const bool main_valid = main.status == StripeStatus::kValid;
+    const int part_lo = main.rs - o_.min_peak_separation_px;
+    const int part_hi = main.re + o_.min_peak_separation_px;
     auto consider = [&](int s) {
       const Candidate other = Evaluate(u, s, at);
       if ((other.status != StripeStatus::kValid && other.status != StripeStatus::kSaturated) ||
@@ -994,7 +1006,12 @@ class ColumnExtractor {
         if (f.rp == other.rp) return;
       }
       if (found.size() >= kMaxCandidates) return;
-      if (collect_offband && (other.rp < rlo || other.rp > rhi)) offband.push_back(other.rp);
+      // Around a stripe found outside the band, as around the candidate; a much wider one (a
+      // lit surface, which Verdict drops) needs no look around.
+      if (collect_offband && (other.rp < rlo || other.rp > rhi) &&
+          !(main_valid && other.width > kMaxWidthRatio * main.width + kWidthSlackPx)) {
+        offband.push_back(other.rp);
+      }
       found.push_back(other);
     };
     // Every peak of rows lo..hi (the first row of a flat top) other than the candidate's that
@@ -1004,6 +1021,7 @@ class ColumnExtractor {
       for (int r = std::max(lo, 0); r <= std::min(hi, p_.height - 1); ++r) {
         if (r == main.rp || (skip_band && r >= rlo && r <= rhi) || !Inside(u, r)) continue;
         const int g = at(r);
+        if (main_valid && r >= part_lo && r <= part_hi && g <= main.gmax) continue;
         if (g < o_.min_peak || (r > 0 && at(r - 1) >= g) || (r + 1 < p_.height && at(r + 1) > g)) {
           continue;
         }

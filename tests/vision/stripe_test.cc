@@ -341,8 +341,21 @@ RefLine RefColumn(const std::vector<int>& g, const std::vector<int>& raw, const 
   std::vector<RefCandidate> valid;
   std::vector<int> seen;
   bool clipped = false;  // a saturated peak: maybe the stripe
+  // Highest first: a peak within min_peak_separation_px of a valid candidate's run and no
+  // higher is part of that stripe, not a candidate.
+  std::vector<int> peaks;
   for (int r = 0; r < n; ++r) {
     if ((r > 0 && g[r - 1] >= g[r]) || (r + 1 < n && g[r + 1] > g[r])) continue;
+    peaks.push_back(r);
+  }
+  std::stable_sort(peaks.begin(), peaks.end(), [&](int a, int b) { return g[a] > g[b]; });
+  for (int r : peaks) {
+    bool part = false;
+    for (const RefCandidate& v : valid) {
+      part = part || (r >= v.rs - o.min_peak_separation_px &&
+                      r <= v.re + o.min_peak_separation_px && g[r] <= v.gmax);
+    }
+    if (part) continue;
     const RefCandidate c = RefEvaluate(g, &raw, r, o, background, saturation);
     if (std::abs(c.contrast - o.min_contrast) <= tolerance) out.ambiguous = true;
     if (c.status == StripeStatus::kSaturated && !clipped) out.evidence = 0.5 * (c.rs + c.re);
