@@ -150,8 +150,10 @@ vision::StripeWindow LineWindowOnPlane(const ScanOptions& o, const calib::Calibr
                  line_hi = (columns ? umax : vmax) + margin;
     const double along_lo = (columns ? vmin : umin) - margin,
                  along_hi = (columns ? vmax : umax) + margin;
-    const int first = std::max(0, static_cast<int>(std::floor(line_lo)));
-    const int last = std::min(lines - 1, static_cast<int>(std::ceil(line_hi)));
+    // Clamped to the frame before the casts (a point far outside projects anywhere).
+    const int first = static_cast<int>(std::floor(std::clamp(line_lo, 0.0, lines - 1.0)));
+    const int last = static_cast<int>(std::ceil(std::clamp(line_hi, 0.0, lines - 1.0)));
+    if (!(line_hi >= 0.0 && line_lo <= lines - 1.0)) continue;
     for (int l = first; l <= last; ++l) {
       window.lo[l] = std::min(window.lo[l], static_cast<float>(along_lo));
       window.hi[l] = std::max(window.hi[l], static_cast<float>(along_hi));

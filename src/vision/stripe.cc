@@ -25,19 +25,23 @@
 // columns u-1..u+1 is <= K cannot hold a pixel of column u with m > K, and a column whose bound
 // is below min_peak holds no stripe; neither needs filtering.
 //
+// Between the passes, a ridge table from the same block maxima (RidgeBody, vectorized): per
+// column, the block standing highest above both blocks 16 rows away, and whether there are
+// others. The stripe is sought there, not at the brightest block: a white label, a lit face or a
+// board is bright but no ridge.
+//
 // Pass 2 works on groups of kGroupCols columns whose stripes lie in nearby blocks: it computes the
 // exact 3x3 median m only in the band of blocks around the stripes (vectorized across the group's
-// columns, sorted-triple method), then per column: gmax, K = k * gmax, the contiguous run above K
-// around the maximum, the gray centroid of eq. (7), saturation on the raw pixels of the run, and
-// a second peak as any other pixel above K in the band or, through the bound, outside it
-// (confirmed on exact medians). Rare cases are redone with a wider band: a run reaching the band's
-// edge (wide stripes) and a column whose exact maximum may lie outside its band (a two-pixel
-// defect can pull the maximum of v away from the stripe; the 3x3 median removes it).
+// columns, sorted-triple method), then per column (Decide): the candidate at the ridge, every
+// other peak in the band, at the column's other ridges and near those, each evaluated
+// (Evaluate: valleys, local background windows, K above them, the run, the centroid of g - K,
+// the shape tests) and weighed (Verdict: one stripe, two, or none). Rows outside the band are
+// filtered exactly where they are needed (ExactAt). Then per frame: the width test against the
+// frame's stripe and the continuity test (WidthTest, IsolationTest).
 //
-// The scan line's background for min_contrast is the median of the raw profile sampled on
-// kBackgroundSamples evenly spaced rows (an exact median of the sample, computed for all columns
-// at once by a bitwise radix select); the stripe occupies a few percent of a scan line, so this
-// estimates the profile median to a fraction of the noise.
+// The scan line's background for the first test of an empty column (min_contrast) is the
+// median of the raw profile sampled on kBackgroundSamples evenly spaced rows (an exact median of
+// the sample, computed for all columns at once by a bitwise radix select).
 #include "insitu/vision/stripe.h"
 
 #include <algorithm>
@@ -129,6 +133,20 @@ struct Plane {
   const T* row_clamped(int v) const { return row(std::clamp(v, 0, height - 1)); }
 };
 
+// One stripe candidate of a scan line, as Evaluate finds it.
+struct Candidate {
+  StripeStatus status = StripeStatus::kNone;
+  int rp = 0;             // the local maximum of the filtered profile
+  int gmax = 0;           // its value
+  int rs = 0, re = -1;    // the run above K (rows)
+  double level = 0.0;     // K at rp
+  double base = 0.0;      // the local background under the peak
+  double contrast = 0.0;  // gmax - base
+  double center = 0.0;    // eq. (7) with the local background removed
+  double sigma = 0.0;     // the centre's 1-sigma from the local noise
+  double width = 0.0;     // the run's width at K, interpolated between pixels
+};
+
 // Scratch buffers for one sample type; sized on the first frame and reused.
 template <typename T>
 struct Work {
@@ -146,14 +164,13 @@ struct Work {
   std::vector<uint8_t> ridge_count;                  // W: ridges reaching the floor, up to 2
   // Pass 2, one group.
   std::vector<T> pad, lo, mid, hi, tile;
-  std::vector<T> gmax;
-  std::vector<uint16_t> argrow;
   std::vector<uint8_t> candidate;
   std::vector<T> seed_block;  // per group column: the block its stripe is sought in
   std::vector<float> widths;  // W: valid columns' widths at K, for the frame's width test
   std::vector<float> sorted_widths;
   std::vector<float> evidence;  // W: where each scan line sees the stripe (valid or clipped)
   std::vector<int> offband;     // one column's valid peaks found outside its band
+  std::vector<Candidate> found, valid;  // one column's candidates (Decide, Verdict)
   std::vector<T> transposed;
 };
 
@@ -385,20 +402,6 @@ INSITU_INLINE void TileBody(const Plane<T>& p, int u0, int n, int rlo, int rhi, 
       }
     }
   }
-  // Column maximum of the band and its first row.
-  T* __restrict gmax = w.gmax.data();
-  uint16_t* __restrict argrow = w.argrow.data();
-  std::copy_n(tile, n, gmax);
-  std::fill_n(argrow, n, uint16_t{0});
-  for (int i = 1; i < rows; ++i) {
-    const T* __restrict t = tile + i * n;
-    const uint16_t id = static_cast<uint16_t>(i);
-    for (int c = 0; c < n; ++c) {
-      const bool gt = t[c] > gmax[c];
-      gmax[c] = gt ? t[c] : gmax[c];
-      argrow[c] = gt ? id : argrow[c];
-    }
-  }
 }
 
 // The stripe's blocks, by the block maxima of pass 1 (own column, vertical median v): the ridge
@@ -586,20 +589,6 @@ class ColumnExtractor {
   }
 
  private:
-  // One stripe candidate of a scan line, as Evaluate finds it.
-  struct Candidate {
-    StripeStatus status = StripeStatus::kNone;
-    int rp = 0;             // the local maximum of the filtered profile
-    int gmax = 0;           // its value
-    int rs = 0, re = -1;    // the run above K (rows)
-    double level = 0.0;     // K at rp: where other runs of the band are looked for
-    double base = 0.0;      // the local background under the peak
-    double contrast = 0.0;  // gmax - base
-    double center = 0.0;    // eq. (7) with the local background removed
-    double sigma = 0.0;     // the centre's 1-sigma from the local noise
-    double width = 0.0;     // the run's width at K, interpolated between pixels
-  };
-
   void Resize() {
     const size_t width = static_cast<size_t>(p_.width);
     w_.acc.resize(width);
@@ -622,8 +611,6 @@ class ColumnExtractor {
     const size_t tile_size = (static_cast<size_t>(band_blocks) * block_rows_ + 2) * kGroupCols;
     w_.pad.resize(kGroupCols + 2);
     for (auto* v : {&w_.lo, &w_.mid, &w_.hi, &w_.tile}) v->resize(tile_size);
-    w_.gmax.resize(kGroupCols);
-    w_.argrow.resize(kGroupCols);
     w_.candidate.resize(kGroupCols);
     w_.seed_block.resize(kGroupCols);
     res_->center.resize(width);
@@ -751,20 +738,21 @@ class ColumnExtractor {
     c.rs = rs;
     c.re = re;
     const uint8_t* raw = p_.base + sizeof(T) * u;
-    auto saturated = [&](int from, int to) {
+    // A run reaching full scale in the raw pixels is clipped; one over max_width_px too wide.
+    auto refused = [&](int from, int to) {
       for (int r = from; r <= to; ++r) {
-        if (*reinterpret_cast<const T*>(raw + r * p_.stride) >= saturation_) return true;
+        if (*reinterpret_cast<const T*>(raw + r * p_.stride) >= saturation_) {
+          c.status = StripeStatus::kSaturated;
+          return true;
+        }
+      }
+      if (to - from + 1 > o_.max_width_px) {
+        c.status = StripeStatus::kTooWide;
+        return true;
       }
       return false;
     };
-    if (saturated(rs, re)) {
-      c.status = StripeStatus::kSaturated;
-      return c;
-    }
-    if (re - rs + 1 > o_.max_width_px) {
-      c.status = StripeStatus::kTooWide;
-      return c;
-    }
+    if (refused(rs, re)) return c;
     // The local background: two windows beside the run, as long as the run and half a run away
     // from it (a run above half the peak ends ~1.2 sigma from the centre, so the windows start
     // ~2.4 sigma out, where a Gaussian profile is under 6 % of its peak, the same on both
@@ -817,14 +805,7 @@ class ColumnExtractor {
     RunAround(at, rp, level, &rs, &re);
     c.rs = rs;
     c.re = re;
-    if (saturated(rs, re)) {
-      c.status = StripeStatus::kSaturated;
-      return c;
-    }
-    if (re - rs + 1 > o_.max_width_px) {
-      c.status = StripeStatus::kTooWide;
-      return c;
-    }
+    if (refused(rs, re)) return c;
     // Eq. (7) with weights g_i - K_i: the stripe's own light above the threshold, so neither the
     // background nor its slope pulls the centre.
     double s0 = 0.0, s1 = 0.0;
@@ -958,9 +939,7 @@ class ColumnExtractor {
     Tile(p_, u0, n, rlo, rhi, w_, median_);
     const T* tile = w_.tile.data();
     for (int c = 0; c < n; ++c) {
-      if (w_.candidate[c])
-        Decide(u0 + c, tile + c - static_cast<ptrdiff_t>(rlo) * n, n, rlo, rhi, blo, bhi,
-               w_.seed_block[c]);
+      if (w_.candidate[c]) Decide(u0 + c, tile + c, n, rlo, rhi, blo, bhi, w_.seed_block[c]);
     }
   }
 
@@ -968,7 +947,7 @@ class ColumnExtractor {
   // ridge of the column, and the verdict.
   void Decide(int u, const T* col, int n, int rlo, int rhi, int blo, int bhi, int seed_block) {
     const auto at = [&](int r) INSITU_LAMBDA_INLINE -> int {
-      return r >= rlo && r <= rhi ? col[static_cast<ptrdiff_t>(r) * n] : ExactAt(u, r);
+      return r >= rlo && r <= rhi ? col[static_cast<ptrdiff_t>(r - rlo) * n] : ExactAt(u, r);
     };
     // The seed: the brightest row of the seed block.
     const int b0 = seed_block * block_rows_;
@@ -981,7 +960,7 @@ class ColumnExtractor {
     // Others: every other peak near the candidate (in the band), at the column's other ridges,
     // and near any of those found outside the band (two stripes, or a reflection: the same
     // light twice). Every valid one is kept; the verdict weighs them all (Verdict).
-    std::vector<Candidate>& found = cands_;
+    std::vector<Candidate>& found = w_.found;
     found.clear();
     if ((main.status == StripeStatus::kValid || main.status == StripeStatus::kSaturated) &&
         Inside(u, main.rp)) {
@@ -1081,7 +1060,11 @@ class ColumnExtractor {
       return;
     }
     if (chosen == nullptr) {
-      SetResult(u, main.status, main.gmax, main.re - main.rs + 1, kNaN);
+      // Nothing in the window: a peak outside it is not the stripe, whatever it is.
+      const StripeStatus why = Inside(u, main.rp) && main.status != StripeStatus::kValid
+                                   ? main.status
+                                   : StripeStatus::kNone;
+      SetResult(u, why, main.gmax, main.re - main.rs + 1, kNaN);
       return;
     }
     const int base = std::max(0, static_cast<int>(std::lround(chosen->base)));
@@ -1099,9 +1082,9 @@ class ColumnExtractor {
   // stripe: kTwoPeaks. A clipped peak (saturated) may be the stripe too: beside a valid one it
   // makes two peaks, alone the scan line is kSaturated. Else kValid with *chosen the
   // strongest, or kNone with no candidate.
-  StripeStatus Verdict(const std::vector<Candidate>& all, const Candidate** chosen) const {
+  StripeStatus Verdict(const std::vector<Candidate>& all, const Candidate** chosen) {
     *chosen = nullptr;
-    std::vector<Candidate>& found = valid_;
+    std::vector<Candidate>& found = w_.valid;
     found.clear();
     bool clipped = false;
     for (const Candidate& c : all) {
@@ -1134,9 +1117,12 @@ class ColumnExtractor {
   bool WindowBlocks(int u, int* b_lo, int* b_hi) const {
     const float lo = window_->lo[u], hi = window_->hi[u];
     if (std::isnan(lo) || std::isnan(hi)) return true;
-    const int r_lo = std::max(0, static_cast<int>(std::floor(lo)));
-    const int r_hi = std::min(p_.height - 1, static_cast<int>(std::ceil(hi)));
-    if (r_lo > r_hi) return false;
+    if (!(lo <= hi)) return false;
+    // The rows inside it (as Inside counts them), clamped to the frame before any cast.
+    const double first = std::ceil(std::max<double>(lo, 0.0));
+    const double last = std::floor(std::min<double>(hi, p_.height - 1));
+    if (first > last) return false;
+    const int r_lo = static_cast<int>(first), r_hi = static_cast<int>(last);
     *b_lo = r_lo / block_rows_;
     *b_hi = r_hi / block_rows_;
     return true;
@@ -1254,8 +1240,6 @@ class ColumnExtractor {
   int ridge_blocks_ = 2;
   int reach_ = 10;
   const StripeWindow* window_;
-  std::vector<Candidate> cands_;
-  mutable std::vector<Candidate> valid_;  // Verdict's scratch
 };
 
 // kRows is run as kColumns on the transposed frame: simple and exactly equivalent; the transpose

@@ -1123,6 +1123,57 @@ TEST(StripeExtractorTest, TwoPixelDefectAwayFromTheStripe) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// The window: where the light plane lets the stripe be.
+
+TEST(StripeExtractorTest, AWindowKeepsOutLightFromElsewhere) {
+  TestImage img(80, 200, 8, 15);
+  img.AddRowStripe([](int) { return 120.3; }, 1.5, 100);  // the stripe
+  img.AddRowStripe([](int) { return 50.0; }, 1.5, 150);   // a brighter reflection
+  img.AddNoise(1.5, 51);
+  const ImageView view = img.View();
+  StripeExtractor extractor(ColumnOptions());
+  StripeResult r;
+  auto window = [](float lo, float hi) {
+    StripeWindow w;
+    w.lo.assign(80, lo);
+    w.hi.assign(80, hi);
+    return w;
+  };
+  // No window, or NaN limits (anywhere): two stripes in every column.
+  ASSERT_TRUE(extractor.Extract(view, &r).ok());
+  EXPECT_EQ(r.valid_count(), 0);
+  EXPECT_EQ(r.status[40], StripeStatus::kTwoPeaks);
+  StripeWindow w = window(NAN, NAN);
+  ASSERT_TRUE(extractor.Extract(view, &r, &w).ok());
+  EXPECT_EQ(r.status[40], StripeStatus::kTwoPeaks);
+  // The plane's rows: the stripe, not the brighter light outside them.
+  w = window(100.0f, 140.0f);
+  ASSERT_TRUE(extractor.Extract(view, &r, &w).ok());
+  EXPECT_EQ(r.valid_count(), 80);
+  EXPECT_NEAR(r.center[40], 120.3, 0.2);
+  // A window holding neither (its edge half a pixel from the stripe's peak row 120), an empty
+  // one (lo > hi), and one under a pixel wide: no stripe, never a valid line without a centre.
+  for (const auto& [lo, hi] :
+       {std::pair{120.5f, 190.0f}, std::pair{10.0f, 5.0f}, std::pair{80.2f, 80.8f}}) {
+    w = window(lo, hi);
+    ASSERT_TRUE(extractor.Extract(view, &r, &w).ok());
+    for (int u = 0; u < 80; ++u) {
+      EXPECT_EQ(r.status[u], StripeStatus::kNone) << lo << ".." << hi << " column " << u;
+      EXPECT_TRUE(std::isnan(r.center[u]));
+    }
+  }
+  // Refused: a window of another size, and a window with the direction left to the image.
+  w = window(100.0f, 140.0f);
+  w.hi.pop_back();
+  EXPECT_EQ(extractor.Extract(view, &r, &w).code(), StatusCode::kInvalidArgument);
+  StripeExtractor automatic(StripeOptions{});
+  w = window(100.0f, 140.0f);
+  const Status st = automatic.Extract(view, &r, &w);
+  EXPECT_EQ(st.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(st.message().find("auto"), std::string::npos) << st.message();
+}
+
+// ---------------------------------------------------------------------------------------------
 // Directions.
 
 TEST(StripeExtractorTest, RowsDirectionMatchesColumnsOnTransposedImage) {

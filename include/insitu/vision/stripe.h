@@ -59,16 +59,18 @@ const char* StripeStatusName(StripeStatus status);
 
 struct StripeOptions {
   StripeDirection direction = StripeDirection::kAuto;
-  // k of K = k * gmax (seed 000 eq. 7).
+  // k of K = b + k (gmax - b), b the local background under the peak (seed 000 eq. 7's
+  // threshold, above the background).
   double threshold_ratio = 0.5;
   // Side of the square median filter, 1 (off) or 3.
   int median_kernel = 3;
   // A scan line whose filtered maximum is below this many gray levels (in the image's own
   // scale, 8- or 12-bit) holds no stripe.
   double min_peak = 20.0;
-  // ... or whose maximum exceeds the scan line's background (median of the profile) by less.
+  // ... or whose peak stands less than this above its local background (the darker side, then
+  // the windows beside the run).
   double min_contrast = 12.0;
-  // A run above K wider than this is not a stripe.
+  // A run above K wider than this is not a stripe (too_wide).
   int max_width_px = 40;
   // Dips below K shorter than this many pixels are noise inside one stripe and are bridged.
   int min_peak_separation_px = 3;
