@@ -139,7 +139,6 @@ struct Candidate {
   int rp = 0;             // the local maximum of the filtered profile
   int gmax = 0;           // its value
   int rs = 0, re = -1;    // the run above K (rows)
-  double level = 0.0;     // K at rp
   double base = 0.0;      // the local background under the peak
   double contrast = 0.0;  // gmax - base
   double center = 0.0;    // eq. (7) with the local background removed
@@ -167,7 +166,8 @@ struct Work {
   std::vector<uint8_t> candidate;
   std::vector<T> seed_block;  // per group column: the block its stripe is sought in
   std::vector<float> widths;  // W: valid columns' widths at K, for the frame's width test
-  std::vector<float> sorted_widths;
+  std::vector<float> sorted_widths;  // WidthTest's
+  std::vector<uint8_t> refuse;       // IsolationTest's: scan lines to refuse this round
   std::vector<float> evidence;  // W: where each scan line sees the stripe (valid or clipped)
   std::vector<int> offband;     // one column's valid peaks found outside its band
   std::vector<Candidate> found, valid;  // one column's candidates (Decide, Verdict)
@@ -661,28 +661,21 @@ class ColumnExtractor {
   template <typename At, typename Level>
   void RunAround(const At& at, int rp, const Level& level, int* rs_out, int* re_out) const {
     const int height = p_.height;
-    int re = rp;
-    for (int r = rp + 1, gap = 0; r < height; ++r) {
-      if (at(r) > level(r)) {
-        re = r;
-        gap = 0;
-        if (re - rp >= o_.max_width_px) break;
-      } else if (++gap >= o_.min_peak_separation_px) {
-        break;
+    int ends[2] = {rp, rp};  // rs, re
+    for (int side = 0; side < 2; ++side) {
+      const int dir = side == 0 ? -1 : 1;
+      for (int r = rp + dir, gap = 0; r >= 0 && r < height; r += dir) {
+        if (at(r) > level(r)) {
+          ends[side] = r;
+          gap = 0;
+          if (std::abs(r - rp) >= o_.max_width_px) break;
+        } else if (++gap >= o_.min_peak_separation_px) {
+          break;
+        }
       }
     }
-    int rs = rp;
-    for (int r = rp - 1, gap = 0; r >= 0; --r) {
-      if (at(r) > level(r)) {
-        rs = r;
-        gap = 0;
-        if (rp - rs >= o_.max_width_px) break;
-      } else if (++gap >= o_.min_peak_separation_px) {
-        break;
-      }
-    }
-    *rs_out = rs;
-    *re_out = re;
+    *rs_out = ends[0];
+    *re_out = ends[1];
   }
 
   // The stripe candidate whose peak the filtered profile `at` climbs to from `seed` (see the file
@@ -731,10 +724,10 @@ class ColumnExtractor {
     c.contrast = c.gmax - b0;
     if (c.contrast < o_.min_contrast) return c;
     const double k = o_.threshold_ratio;
-    c.level = b0 + k * c.contrast;
+    const double level0 = b0 + k * c.contrast;
     int rs = rp, re = rp;
     RunAround(
-        at, rp, [&](int) { return c.level; }, &rs, &re);
+        at, rp, [&](int) { return level0; }, &rs, &re);
     c.rs = rs;
     c.re = re;
     const uint8_t* raw = p_.base + sizeof(T) * u;
@@ -793,7 +786,6 @@ class ColumnExtractor {
       c.status = StripeStatus::kNone;
       return c;
     }
-    c.level = c.base + k * c.contrast;
     // A surface edge under the stripe: the background on its two sides differs by more than the
     // stripe's own height. No straight line is the background there.
     if (count[0] > 0 && count[1] > 0 && std::abs(mean[1] - mean[0]) > c.contrast) {
@@ -1188,7 +1180,7 @@ class ColumnExtractor {
   // until nothing changes (a run of two such centres).
   void IsolationTest() {
     const int n = p_.width;
-    std::vector<float>& refuse = w_.sorted_widths;  // scratch
+    std::vector<uint8_t>& refuse = w_.refuse;
     auto side_median = [&](int u, int dir, float* out) {
       float vals[kIsolatedReach];
       int k = 0;
@@ -1206,7 +1198,7 @@ class ColumnExtractor {
       return true;
     };
     for (int round = 0; round < kIsolatedReach; ++round) {
-      refuse.assign(static_cast<size_t>(n), 0.0f);
+      refuse.assign(static_cast<size_t>(n), 0);
       bool any = false;
       for (int u = 0; u < n; ++u) {
         if (res_->status[u] != StripeStatus::kValid) continue;
@@ -1215,13 +1207,13 @@ class ColumnExtractor {
         const float c = res_->center[u];
         if (std::abs(left - right) <= kIsolatedPx && std::abs(c - left) > kIsolatedPx &&
             std::abs(c - right) > kIsolatedPx) {
-          refuse[u] = 1.0f;
+          refuse[u] = 1;
           any = true;
         }
       }
       if (!any) break;
       for (int u = 0; u < n; ++u) {
-        if (refuse[u] > 0) {
+        if (refuse[u]) {
           Refuse(u);
           w_.evidence[u] = kNaN;
         }

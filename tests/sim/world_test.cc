@@ -158,6 +158,21 @@ double LevelAt(const SimWorld& w, const Frame& f, const Eigen::Vector3d& p) {
   return sum / 9.0;
 }
 
+// The frame a world takes of the pointer's line x = x_mm from y0 to y1 (after 5 ms of sweeping),
+// at `exposure_us` (0: the camera's own).
+Frame LineFrame(const WorldOptions& opts, double x_mm, double y0, double y1,
+                double exposure_us = 0.0) {
+  SimWorld w(opts);
+  if (exposure_us > 0) {
+    EXPECT_TRUE(w.SetExposure(exposure_us).ok());
+  }
+  EXPECT_TRUE(w.StartPointerLine({x_mm, y0, 0}, {x_mm, y1, 0}, 5000).ok());
+  w.Advance(0.005);
+  auto f = w.Grab();
+  EXPECT_TRUE(f.ok());
+  return f.ok() ? *f : Frame{};
+}
+
 WorldOptions Quiet() {
   WorldOptions o;
   o.part.kind = "none";
@@ -216,12 +231,8 @@ TEST(SimWorld, AGlossyPartGlints) {
   o.part.kind = "arc";
   o.part.albedo = 0.3;
   auto peak = [](const WorldOptions& opts) {
-    SimWorld w(opts);
-    EXPECT_TRUE(w.SetExposure(5000).ok());
-    EXPECT_TRUE(w.StartPointerLine({-7.4, -15, 0}, {-7.4, 15, 0}, 5000).ok());
-    w.Advance(0.005);
-    auto f = w.Grab();
-    return static_cast<int>(*std::max_element(f->bytes.begin(), f->bytes.end()));
+    const Frame f = LineFrame(opts, -7.4, -15, 15, 5000);
+    return static_cast<int>(*std::max_element(f.bytes.begin(), f.bytes.end()));
   };
   const int matte = peak(o);
   o.part.specular = 0.5;
@@ -238,16 +249,9 @@ TEST(SimWorld, InterreflectionLightsFacingSurfaces) {
   WorldOptions o = Quiet();
   o.part.kind = "step_gauge";
   o.part.albedo = 0.9;
-  auto frame = [](const WorldOptions& opts) {
-    SimWorld w(opts);
-    EXPECT_TRUE(w.StartPointerLine({3, -40, 0}, {3, 40, 0}, 5000).ok());
-    w.Advance(0.005);
-    auto f = w.Grab();
-    return *f;
-  };
-  const Frame single = frame(o);
+  const Frame single = LineFrame(o, 3, -40, 40);
   o.light.interreflection = true;
-  const Frame twice = frame(o);
+  const Frame twice = LineFrame(o, 3, -40, 40);
   int brighter = 0, darker = 0;
   int stripe_max = 0, glow_max = 0;
   for (size_t i = 0; i < single.bytes.size(); ++i) {
@@ -269,17 +273,13 @@ TEST(SimWorld, AColourCameraSeesTheRedLineThroughItsRedFilters) {
   WorldOptions o = Quiet();
   o.part.kind = "plane";
   o.camera.pixel_format = "BayerRG";
-  SimWorld w(o);
-  ASSERT_TRUE(w.StartPointerLine({0, -30, 0}, {0, 30, 0}, 5000).ok());
-  w.Advance(0.005);
-  auto f = w.Grab();
-  ASSERT_TRUE(f.ok());
-  EXPECT_EQ(f->format, PixelFormat::kBayerRG);
+  const Frame f = LineFrame(o, 0, -30, 30);
+  EXPECT_EQ(f.format, PixelFormat::kBayerRG);
   double sum[3] = {0, 0, 0};
-  for (int v = 0; v < f->height; ++v) {
-    for (int u = 0; u < f->width; ++u) {
+  for (int v = 0; v < f.height; ++v) {
+    for (int u = 0; u < f.width; ++u) {
       const int filter = (v % 2 == 0) ? (u % 2 == 0 ? 0 : 1) : (u % 2 == 0 ? 1 : 2);
-      sum[filter] += f->at(u, v) * (filter == 1 ? 0.5 : 1.0);  // two greens per quad
+      sum[filter] += f.at(u, v) * (filter == 1 ? 0.5 : 1.0);  // two greens per quad
     }
   }
   EXPECT_NEAR(sum[0] / sum[1], 0.9 / 0.10, 0.15 * 0.9 / 0.10);
