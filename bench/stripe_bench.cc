@@ -225,7 +225,8 @@ void RunExtract(benchmark::State& state, const cv::Mat& frame, int bit_depth,
                 StripeDirection direction) {
   StripeOptions options;
   options.direction = direction;
-  StripeExtractor extractor(options);
+  // The gray levels in the frame's own scale, as the scan gives them.
+  StripeExtractor extractor(options.ForBitDepth(bit_depth));
   StripeResult result;
   const ImageView view = View(frame, bit_depth);
   for (auto _ : state) {

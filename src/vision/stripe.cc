@@ -31,13 +31,15 @@
 // board is bright but no ridge.
 //
 // Pass 2 works on groups of kGroupCols columns whose stripes lie in nearby blocks: it computes the
-// exact 3x3 median m only in the band of blocks around the stripes (vectorized across the group's
-// columns, sorted-triple method), then per column (Decide): the candidate at the ridge, every
-// other peak in the band, at the column's other ridges and near those, each evaluated
+// exact 3x3 median m only in the band of blocks around the stripes and reach_ rows beyond
+// (vectorized across the group's columns, sorted-triple method) with the band's peaks that pass
+// the first test (PeakFlags), then per column (Decide): the candidate at the ridge, every other
+// peak in the band, at the column's other ridges and near those, each evaluated once
 // (Evaluate: valleys, local background windows, K above them, the run, the centroid of g - K,
-// the shape tests) and weighed (Verdict: one stripe, two, or none). Rows outside the band are
-// filtered exactly where they are needed (ExactAt). Then per frame: the width test against the
-// frame's stripe and the continuity test (WidthTest, IsolationTest).
+// the shape tests) and weighed (Verdict: one stripe, two, or none). Rows outside the tile are
+// filtered exactly where they are needed (Outside). Then per frame: the width test against the
+// frame's stripe and the continuity test (WidthTest, IsolationTest). With a window, pass 1
+// reads only the rows some scan line's window holds (WindowedBlocks).
 //
 // The scan line's background for the first test of an empty column (min_contrast) is the
 // median of the raw profile sampled on kBackgroundSamples evenly spaced rows (an exact median of
@@ -95,6 +97,12 @@ constexpr float kIsolatedPx = 3.0f;
 constexpr int kIsolatedReach = 4;
 // Valid candidates weighed per scan line, at most (a lit texture can hold many peaks).
 constexpr size_t kMaxCandidates = 16;
+// Rows of a column's exact profile computed at once outside its band (Outside).
+constexpr int kOutsideRows = 16;
+// Peaks of one column evaluated at most (see Decide).
+constexpr size_t kMaxPeaks = 64;
+// Ridges of a column whose blocks pass 1 lists (more: Decide looks along the column).
+constexpr int kRidgeSlots = 4;
 // Rows sampled per column for the background median (odd: the median is one sample).
 constexpr int kBackgroundSamples = 31;
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
@@ -160,9 +168,16 @@ struct Work {
   std::vector<T> count;       // W, radix select scratch
   std::vector<T> ridge_prev, ridge_cur, ridge_next;  // W each: R of three consecutive blocks
   std::vector<T> ridge, ridge_block;                 // W: the largest ridge and its block
-  std::vector<uint8_t> ridge_count;                  // W: ridges reaching the floor, up to 2
+  std::vector<uint8_t> ridge_count;  // W: ridges reaching the floor, up to kRidgeSlots + 1
+  std::vector<T> ridge_slots;        // kRidgeSlots x W: their blocks, down the column
   // Pass 2, one group.
   std::vector<T> pad, lo, mid, hi, tile;
+  std::vector<uint8_t> peak_flag;   // per tile pixel: a peak passing the pre-test (PeakFlags)
+  std::vector<uint8_t> peak_count;  // per group column: its flags
+  // One column's exact values outside its band, computed once each (Decide's profile).
+  std::vector<T> exact;
+  std::vector<uint32_t> exact_stamp;  // == the column's stamp where `exact` holds its value
+  uint32_t stamp = 0;
   std::vector<uint8_t> candidate;
   std::vector<T> seed_block;  // per group column: the block its stripe is sought in
   std::vector<float> widths;  // W: valid columns' widths at K, for the frame's width test
@@ -170,6 +185,7 @@ struct Work {
   std::vector<uint8_t> refuse;       // IsolationTest's: scan lines to refuse this round
   std::vector<float> evidence;  // W: where each scan line sees the stripe (valid or clipped)
   std::vector<int> offband;     // one column's valid peaks found outside its band
+  std::vector<int> seen;        // one column's peaks evaluated
   std::vector<Candidate> found, valid;  // one column's candidates (Decide, Verdict)
   std::vector<T> transposed;
 };
@@ -258,18 +274,22 @@ INSITU_INLINE void Block8(const T* const* rows, T* __restrict out, T* __restrict
 
 template <typename T, bool kMedian>
 INSITU_INLINE void Pass1Body(const Plane<T>& p, Work<T>& w, int block_rows, int sample_step,
-                             int num_samples) {
+                             int num_samples, int first, int last) {
   const int width = p.width;
   const int height = p.height;
-  const int num_blocks = (height + block_rows - 1) / block_rows;
   T* __restrict acc = w.acc.data();
   T* __restrict colmax = w.colmax.data();
   T* __restrict argblock = w.argblock.data();
   std::fill_n(colmax, width, T{0});
   std::fill_n(argblock, width, T{0});
-  int next_sample = sample_step / 2;
+  // Sample k is row sample_step / 2 + k sample_step, over the whole frame.
   int sample = 0;
-  for (int b = 0; b < num_blocks; ++b) {
+  int next_sample = sample_step / 2;
+  while (sample < num_samples && next_sample < first * block_rows) {
+    ++sample;
+    next_sample += sample_step;
+  }
+  for (int b = first; b <= last; ++b) {
     const int r0 = b * block_rows;
     const int r1 = std::min(height, r0 + block_rows);
     const T block_id = static_cast<T>(b);  // fits: see ColumnExtractor()
@@ -316,6 +336,12 @@ INSITU_INLINE void Pass1Body(const Plane<T>& p, Work<T>& w, int block_rows, int 
       std::memcpy(w.samples.data() + static_cast<size_t>(sample) * width, p.row(next_sample),
                   sizeof(T) * width);
     }
+  }
+  // The samples outside the blocks read: the background is the whole column's.
+  for (int k = 0; k < num_samples; ++k) {
+    const int r = sample_step / 2 + k * sample_step;
+    if (r >= first * block_rows && r < std::min(height, (last + 1) * block_rows)) continue;
+    std::memcpy(w.samples.data() + static_cast<size_t>(k) * width, p.row(r), sizeof(T) * width);
   }
   // The bound on the exact filtered maximum of each column (see the file comment).
   T* __restrict upper = w.upper.data();
@@ -404,21 +430,54 @@ INSITU_INLINE void TileBody(const Plane<T>& p, int u0, int n, int rlo, int rhi, 
   }
 }
 
+// flag[i * n + c] = 1 where tile row i of column c is a peak that Decide's pre-test passes
+// (rows reach..rows-reach-1, where both rows reach away lie in the tile): at least min_peak,
+// above the row before it and not below the row after (the first row of a flat top), and
+// min_contrast above the darker of the rows reach away. The thresholds are integers (the
+// ceilings of the options'), so the test is the scalar one exactly. count[c]: the column's
+// flags (up to 255). Measured: the scalar test
+// over the band took a quarter of a default frame's extraction.
+template <typename T>
+INSITU_INLINE void PeakFlagsBody(const T* __restrict tile, int n, int rows, int reach, T min_peak,
+                                 T min_contrast, uint8_t* __restrict flag,
+                                 uint8_t* __restrict count) {
+  std::fill_n(count, n, uint8_t{0});
+  for (int i = reach; i < rows - reach; ++i) {
+    const T* __restrict g = tile + static_cast<ptrdiff_t>(i) * n;
+    const T* __restrict up = g - n;
+    const T* __restrict down = g + n;
+    const T* __restrict far_up = g - static_cast<ptrdiff_t>(reach) * n;
+    const T* __restrict far_down = g + static_cast<ptrdiff_t>(reach) * n;
+    uint8_t* __restrict f = flag + static_cast<ptrdiff_t>(i) * n;
+    for (int c = 0; c < n; ++c) {
+      const T v = g[c];
+      const T side = Min(far_up[c], far_down[c]);
+      // v - side >= min_contrast without leaving T: v >= min_contrast and side <= v - it.
+      // Bitwise, not short-circuit: one vector compare each.
+      const uint8_t peak =
+          static_cast<uint8_t>((v >= min_peak) & (v >= min_contrast) & (up[c] < v) &
+                               (down[c] <= v) & (side <= static_cast<T>(v - min_contrast)));
+      f[c] = peak;
+      count[c] = static_cast<uint8_t>(count[c] + (peak & (count[c] < 255)));
+    }
+  }
+}
+
 // The stripe's blocks, by the block maxima of pass 1 (own column, vertical median v): the ridge
 // of block b is R(b) = bm(b) - max(bm(b - d), bm(b + d)) (0 where negative; a side beyond the
 // frame counts as dark), its height above the brighter of the blocks d away on either side. A
 // stripe (a few pixels wide) stands above both; a lit surface wider than 2 d blocks, or its
 // edge (a step), does not. Per column: the number of local maxima of R reaching `floor` (up to
-// 2: one stripe or more than one), the largest such R and its block.
+// kRidgeSlots + 1), the blocks of the first kRidgeSlots of them, the largest R and its block.
 template <typename T>
-INSITU_INLINE void RidgeRow(const T* __restrict blocks, int num_blocks, int width, int d, int b,
-                            T* __restrict out) {
-  if (b < 0 || b >= num_blocks) {
+INSITU_INLINE void RidgeRow(const T* __restrict blocks, int first, int last, int width, int d,
+                            int b, T* __restrict out) {
+  if (b < first || b > last) {
     std::fill_n(out, width, T{0});
     return;
   }
   const T* __restrict m = blocks + static_cast<size_t>(b) * width;
-  const bool has_lo = b - d >= 0, has_hi = b + d < num_blocks;
+  const bool has_lo = b - d >= first, has_hi = b + d <= last;
   if (has_lo && has_hi) {
     const T* __restrict lo = blocks + static_cast<size_t>(b - d) * width;
     const T* __restrict hi = blocks + static_cast<size_t>(b + d) * width;
@@ -435,25 +494,39 @@ INSITU_INLINE void RidgeRow(const T* __restrict blocks, int num_blocks, int widt
 }
 
 template <typename T>
-INSITU_INLINE void RidgeBody(const T* __restrict blocks, int num_blocks, int width, int d, T floor,
-                             T* __restrict prev, T* __restrict cur, T* __restrict next,
+INSITU_INLINE void RidgeBody(const T* __restrict blocks, int first, int last, int width, int d,
+                             T floor, T* __restrict prev, T* __restrict cur, T* __restrict next,
                              T* __restrict best, T* __restrict best_block,
-                             uint8_t* __restrict count) {
+                             uint8_t* __restrict count, T* __restrict slots) {
   std::fill_n(best, width, T{0});
   std::fill_n(best_block, width, T{0});
   std::fill_n(count, width, uint8_t{0});
-  RidgeRow(blocks, num_blocks, width, d, -1, prev);
-  RidgeRow(blocks, num_blocks, width, d, 0, cur);
-  for (int b = 0; b < num_blocks; ++b) {
-    RidgeRow(blocks, num_blocks, width, d, b + 1, next);
+  RidgeRow(blocks, first, last, width, d, first - 1, prev);
+  RidgeRow(blocks, first, last, width, d, first, cur);
+  for (int b = first; b <= last; ++b) {
+    RidgeRow(blocks, first, last, width, d, b + 1, next);
     const T id = static_cast<T>(b);
     // Branch-free over the row (the compiler vectorizes it): a local maximum of R reaching
-    // the floor counts (up to 2) and may be the best.
+    // the floor counts, takes the next slot and may be the best.
+    static_assert(kRidgeSlots == 4);
+    T* __restrict s0 = slots;
+    T* __restrict s1 = slots + width;
+    T* __restrict s2 = slots + 2 * static_cast<size_t>(width);
+    T* __restrict s3 = slots + 3 * static_cast<size_t>(width);
     for (int u = 0; u < width; ++u) {
       const T r = cur[u];
       const bool peak = (r >= floor) & (r > prev[u]) & (r >= next[u]);
       const uint8_t c = count[u];
-      count[u] = static_cast<uint8_t>(c + (peak & (c < 2)));
+      // (Masks, not selects: GCC if-converts these four only so.)
+      const T m0 = static_cast<T>(-static_cast<T>(peak & (c == 0)));
+      const T m1 = static_cast<T>(-static_cast<T>(peak & (c == 1)));
+      const T m2 = static_cast<T>(-static_cast<T>(peak & (c == 2)));
+      const T m3 = static_cast<T>(-static_cast<T>(peak & (c == 3)));
+      s0[u] = static_cast<T>((s0[u] & ~m0) | (id & m0));
+      s1[u] = static_cast<T>((s1[u] & ~m1) | (id & m1));
+      s2[u] = static_cast<T>((s2[u] & ~m2) | (id & m2));
+      s3[u] = static_cast<T>((s3[u] & ~m3) | (id & m3));
+      count[u] = static_cast<uint8_t>(c + (peak & (c <= kRidgeSlots)));
       const bool better = peak & (r > best[u]);
       best[u] = better ? r : best[u];
       best_block[u] = better ? id : best_block[u];
@@ -467,19 +540,19 @@ INSITU_INLINE void RidgeBody(const T* __restrict blocks, int num_blocks, int wid
 
 // Instantiations with an AVX2 clone (the default clone is plain x86-64, SSE2).
 INSITU_VECTOR_CLONES void Pass1U8(const Plane<uint8_t>& p, Work<uint8_t>& w, int block_rows,
-                                  int step, int ns, bool median) {
+                                  int step, int ns, bool median, int first, int last) {
   if (median) {
-    Pass1Body<uint8_t, true>(p, w, block_rows, step, ns);
+    Pass1Body<uint8_t, true>(p, w, block_rows, step, ns, first, last);
   } else {
-    Pass1Body<uint8_t, false>(p, w, block_rows, step, ns);
+    Pass1Body<uint8_t, false>(p, w, block_rows, step, ns, first, last);
   }
 }
 INSITU_VECTOR_CLONES void Pass1U16(const Plane<uint16_t>& p, Work<uint16_t>& w, int block_rows,
-                                   int step, int ns, bool median) {
+                                   int step, int ns, bool median, int first, int last) {
   if (median) {
-    Pass1Body<uint16_t, true>(p, w, block_rows, step, ns);
+    Pass1Body<uint16_t, true>(p, w, block_rows, step, ns, first, last);
   } else {
-    Pass1Body<uint16_t, false>(p, w, block_rows, step, ns);
+    Pass1Body<uint16_t, false>(p, w, block_rows, step, ns, first, last);
   }
 }
 INSITU_VECTOR_CLONES void ColumnMedianU8(Work<uint8_t>& w, int ns, int width) {
@@ -506,24 +579,26 @@ INSITU_VECTOR_CLONES void TileU16(const Plane<uint16_t>& p, int u0, int n, int r
     TileBody<uint16_t, false>(p, u0, n, rlo, rhi, w);
   }
 }
-INSITU_VECTOR_CLONES void RidgeU8(Work<uint8_t>& w, int nb, int width, int d, uint8_t floor) {
-  RidgeBody<uint8_t>(w.blocks.data(), nb, width, d, floor, w.ridge_prev.data(), w.ridge_cur.data(),
-                     w.ridge_next.data(), w.ridge.data(), w.ridge_block.data(),
-                     w.ridge_count.data());
+INSITU_VECTOR_CLONES void RidgeU8(Work<uint8_t>& w, int first, int last, int width, int d,
+                                  uint8_t floor) {
+  RidgeBody<uint8_t>(w.blocks.data(), first, last, width, d, floor, w.ridge_prev.data(),
+                     w.ridge_cur.data(), w.ridge_next.data(), w.ridge.data(), w.ridge_block.data(),
+                     w.ridge_count.data(), w.ridge_slots.data());
 }
-INSITU_VECTOR_CLONES void RidgeU16(Work<uint16_t>& w, int nb, int width, int d, uint16_t floor) {
-  RidgeBody<uint16_t>(w.blocks.data(), nb, width, d, floor, w.ridge_prev.data(), w.ridge_cur.data(),
-                      w.ridge_next.data(), w.ridge.data(), w.ridge_block.data(),
-                      w.ridge_count.data());
+INSITU_VECTOR_CLONES void RidgeU16(Work<uint16_t>& w, int first, int last, int width, int d,
+                                   uint16_t floor) {
+  RidgeBody<uint16_t>(w.blocks.data(), first, last, width, d, floor, w.ridge_prev.data(),
+                      w.ridge_cur.data(), w.ridge_next.data(), w.ridge.data(), w.ridge_block.data(),
+                      w.ridge_count.data(), w.ridge_slots.data());
 }
 
 inline void Pass1(const Plane<uint8_t>& p, Work<uint8_t>& w, int block_rows, int step, int ns,
-                  bool median) {
-  Pass1U8(p, w, block_rows, step, ns, median);
+                  bool median, int first, int last) {
+  Pass1U8(p, w, block_rows, step, ns, median, first, last);
 }
 inline void Pass1(const Plane<uint16_t>& p, Work<uint16_t>& w, int block_rows, int step, int ns,
-                  bool median) {
-  Pass1U16(p, w, block_rows, step, ns, median);
+                  bool median, int first, int last) {
+  Pass1U16(p, w, block_rows, step, ns, median, first, last);
 }
 inline void ColumnMedian(Work<uint8_t>& w, int ns, int width) {
   ColumnMedianU8(w, ns, width);
@@ -539,11 +614,29 @@ inline void Tile(const Plane<uint16_t>& p, int u0, int n, int rlo, int rhi, Work
                  bool median) {
   TileU16(p, u0, n, rlo, rhi, w, median);
 }
-inline void Ridge(Work<uint8_t>& w, int nb, int width, int d, int floor) {
-  RidgeU8(w, nb, width, d, static_cast<uint8_t>(std::min(floor, 255)));
+INSITU_VECTOR_CLONES void PeakFlagsU8(const uint8_t* tile, int n, int rows, int reach,
+                                      uint8_t min_peak, uint8_t min_contrast, uint8_t* flag,
+                                      uint8_t* count) {
+  PeakFlagsBody<uint8_t>(tile, n, rows, reach, min_peak, min_contrast, flag, count);
 }
-inline void Ridge(Work<uint16_t>& w, int nb, int width, int d, int floor) {
-  RidgeU16(w, nb, width, d, static_cast<uint16_t>(std::min(floor, 65535)));
+INSITU_VECTOR_CLONES void PeakFlagsU16(const uint16_t* tile, int n, int rows, int reach,
+                                       uint16_t min_peak, uint16_t min_contrast, uint8_t* flag,
+                                       uint8_t* count) {
+  PeakFlagsBody<uint16_t>(tile, n, rows, reach, min_peak, min_contrast, flag, count);
+}
+inline void PeakFlags(const uint8_t* tile, int n, int rows, int reach, uint8_t min_peak,
+                      uint8_t min_contrast, uint8_t* flag, uint8_t* count) {
+  PeakFlagsU8(tile, n, rows, reach, min_peak, min_contrast, flag, count);
+}
+inline void PeakFlags(const uint16_t* tile, int n, int rows, int reach, uint16_t min_peak,
+                      uint16_t min_contrast, uint8_t* flag, uint8_t* count) {
+  PeakFlagsU16(tile, n, rows, reach, min_peak, min_contrast, flag, count);
+}
+inline void Ridge(Work<uint8_t>& w, int first, int last, int width, int d, int floor) {
+  RidgeU8(w, first, last, width, d, static_cast<uint8_t>(std::min(floor, 255)));
+}
+inline void Ridge(Work<uint16_t>& w, int first, int last, int width, int d, int floor) {
+  RidgeU16(w, first, last, width, d, static_cast<uint16_t>(std::min(floor, 65535)));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -569,16 +662,18 @@ class ColumnExtractor {
     num_blocks_ = (p_.height + block_rows_ - 1) / block_rows_;
     ridge_blocks_ = std::max(1, (kRidgeRows + block_rows_ - 1) / block_rows_);
     reach_ = std::clamp(o_.max_width_px / 4, 4, 16);
+    ridge_floor_ = std::max(1, static_cast<int>(std::ceil(o_.min_contrast)));
   }
 
   void Run() {
     const int width = p_.width;
     const int height = p_.height;
     Resize();
+    WindowedBlocks();
     const int ns = std::min(height, kBackgroundSamples);
-    Pass1(p_, w_, block_rows_, height / ns, ns, median_);
+    Pass1(p_, w_, block_rows_, height / ns, ns, median_, first_, last_);
     ColumnMedian(w_, ns, width);
-    Ridge(w_, num_blocks_, width, ridge_blocks_, RidgeFloor());
+    Ridge(w_, first_, last_, width, ridge_blocks_, RidgeFloor());
     std::fill(w_.widths.begin(), w_.widths.end(), kNaN);
     std::fill(w_.evidence.begin(), w_.evidence.end(), kNaN);
     for (int u0 = 0; u0 < width; u0 += kGroupCols) {
@@ -604,13 +699,20 @@ class ColumnExtractor {
       v->resize(width);
     }
     w_.ridge_count.resize(width);
+    w_.ridge_slots.resize(static_cast<size_t>(kRidgeSlots) * width);
     w_.widths.resize(width);
     w_.evidence.resize(width);
     // Largest band: spread + 2 margins, in blocks, plus a row above and below for the filter.
     const int band_blocks = std::min(num_blocks_, kMaxBlockSpread + 3 + 2 * ridge_blocks_);
-    const size_t tile_size = (static_cast<size_t>(band_blocks) * block_rows_ + 2) * kGroupCols;
+    const size_t tile_size =
+        (static_cast<size_t>(band_blocks) * block_rows_ + 2 + 2 * reach_) * kGroupCols;
     w_.pad.resize(kGroupCols + 2);
     for (auto* v : {&w_.lo, &w_.mid, &w_.hi, &w_.tile}) v->resize(tile_size);
+    w_.peak_flag.resize(tile_size);
+    w_.peak_count.resize(kGroupCols);
+    w_.exact.resize(static_cast<size_t>(p_.height));
+    w_.exact_stamp.assign(static_cast<size_t>(p_.height), 0);
+    w_.stamp = 0;
     w_.candidate.resize(kGroupCols);
     w_.seed_block.resize(kGroupCols);
     res_->center.resize(width);
@@ -621,8 +723,33 @@ class ColumnExtractor {
     res_->sigma_px.resize(width);
   }
 
+  // The blocks pass 1 reads: all, or with a window the rows some scan line's window holds, and
+  // the blocks a ridge or a band beside them needs. (On a scan's frame the windows span a
+  // seventh of the rows; the rest of the frame is never the stripe.)
+  void WindowedBlocks() {
+    first_ = 0;
+    last_ = num_blocks_ - 1;
+    if (window_ == nullptr) return;
+    double lo = std::numeric_limits<double>::infinity();
+    double hi = -std::numeric_limits<double>::infinity();
+    for (size_t u = 0; u < window_->lo.size(); ++u) {
+      const float l = window_->lo[u], h = window_->hi[u];
+      if (std::isnan(l) || std::isnan(h)) return;  // this line: anywhere
+      if (l <= h) lo = std::min<double>(lo, l), hi = std::max<double>(hi, h);
+    }
+    if (!(lo <= hi)) {  // no line has a window: nothing to look at
+      last_ = 0;
+      return;
+    }
+    const int r_lo = static_cast<int>(std::clamp(std::floor(lo), 0.0, p_.height - 1.0));
+    const int r_hi = static_cast<int>(std::clamp(std::ceil(hi), 0.0, p_.height - 1.0));
+    const int margin = ridge_blocks_ + 2;
+    first_ = std::max(0, r_lo / block_rows_ - margin);
+    last_ = std::min(num_blocks_ - 1, r_hi / block_rows_ + margin);
+  }
+
   // A ridge at least this high is a stripe candidate: the least contrast a stripe has.
-  int RidgeFloor() const { return std::max(1, static_cast<int>(std::ceil(o_.min_contrast))); }
+  int RidgeFloor() const { return ridge_floor_; }
 
   void SetResult(int u, StripeStatus status, int peak, int width_px, float center, int base = 0,
                  float sigma = kNaN) {
@@ -634,25 +761,55 @@ class ColumnExtractor {
     res_->sigma_px[u] = sigma;
   }
 
-  // Exact filtered value at one pixel (slow path; kept out of line so the callers' accessors
-  // inline).
-  [[gnu::noinline]] T ExactAt(int u, int r) const {
-    if (!median_) return p_.row(r)[u];
-    const int ul = std::max(u - 1, 0);
-    const int ur = std::min(u + 1, p_.width - 1);
-    T lo = std::numeric_limits<T>::min();
-    T hi = std::numeric_limits<T>::max();
-    T m[3];
-    for (int k = 0; k < 3; ++k) {
-      const T* row = p_.row_clamped(r - 1 + k);
-      const T a = row[ul];
-      const T b = row[u];
-      const T d = row[ur];
-      lo = Max(lo, Min(Min(a, b), d));
-      hi = Min(hi, Max(Max(a, b), d));
-      m[k] = Med3(a, b, d);
+  // One column's filtered profile (Decide's): the group's tile over rows tlo..thi, the exact
+  // median (Outside, each row once) beyond it. Passed by value, so that Evaluate keeps it in
+  // registers.
+  struct Profile {
+    const ColumnExtractor* x;
+    int u;
+    const T* col;  // the column in the tile
+    int n;         // the tile's stride
+    int tlo, thi;
+    uint32_t stamp;
+    const T* exact;               // Work::exact
+    const uint32_t* exact_stamp;  // Work::exact_stamp
+    INSITU_INLINE int operator()(int r) const {
+      if (r >= tlo && r <= thi) return col[static_cast<ptrdiff_t>(r - tlo) * n];
+      return exact_stamp[r] == stamp ? exact[r] : x->Outside(u, r, stamp);
     }
-    return Med3(lo, Med3(m[0], m[1], m[2]), hi);
+    // Whether rows a..b (a <= b) all lie in the tile, and a pointer to row r there.
+    bool InTile(int a, int b) const { return a >= tlo && b <= thi; }
+    const T* Row(int r) const { return col + static_cast<ptrdiff_t>(r - tlo) * n; }
+  };
+
+  // The exact 3x3 median outside the tile, each row computed once per column (Decide's stamp),
+  // kOutsideRows
+  // aligned rows at a time: the looks outside the band sweep along the column, and a run of
+  // rows shares each row's sorted triple (one sort per row instead of three per value).
+  [[gnu::noinline]] T Outside(int u, int r, uint32_t stamp) const {
+    const int r0 = r - r % kOutsideRows;
+    const int r1 = std::min(r0 + kOutsideRows, p_.height) - 1;
+    if (!median_) {
+      for (int i = r0; i <= r1; ++i) w_.exact[i] = p_.row(i)[u];
+    } else {
+      const int ul = std::max(u - 1, 0);
+      const int ur = std::min(u + 1, p_.width - 1);
+      T lo[kOutsideRows + 2], mid[kOutsideRows + 2], hi[kOutsideRows + 2];
+      for (int i = 0; i < r1 - r0 + 3; ++i) {
+        const T* row = p_.row_clamped(r0 - 1 + i);
+        const T a = row[ul], b = row[u], d = row[ur];
+        lo[i] = Min(Min(a, b), d);
+        hi[i] = Max(Max(a, b), d);
+        mid[i] = Med3(a, b, d);
+      }
+      for (int i = 0; i <= r1 - r0; ++i) {
+        const T l = Max(Max(lo[i], lo[i + 1]), lo[i + 2]);
+        const T h = Min(Min(hi[i], hi[i + 1]), hi[i + 2]);
+        w_.exact[r0 + i] = Med3(l, Med3(mid[i], mid[i + 1], mid[i + 2]), h);
+      }
+    }
+    std::fill(w_.exact_stamp.begin() + r0, w_.exact_stamp.begin() + r1 + 1, stamp);
+    return w_.exact[r];
   }
 
   // The contiguous run around rp of rows whose filtered value exceeds level(r); dips below it
@@ -681,13 +838,25 @@ class ColumnExtractor {
   // The stripe candidate whose peak the filtered profile `at` climbs to from `seed` (see the file
   // comment: local background, threshold above it, centroid, shape).
   template <typename At>
-  Candidate Evaluate(int u, int seed, const At& at) const {
+  Candidate Evaluate(int u, int seed, At at) const {
+    return EvaluatePeak(u, Climb(seed, at), at);
+  }
+
+  // Up from `seed` to its peak, and to the first row of a flat top (one answer whatever the seed
+  // on the peak's flank).
+  template <typename At>
+  int Climb(int seed, At at) const {
+    int rp = seed;
+    while (rp + 1 < p_.height && at(rp + 1) > at(rp)) ++rp;
+    while (rp > 0 && at(rp - 1) >= at(rp)) --rp;
+    return rp;
+  }
+
+  // The candidate of the peak at rp (Climb's).
+  template <typename At>
+  Candidate EvaluatePeak(int u, int rp, At at) const {
     const int height = p_.height;
     Candidate c;
-    int rp = seed;
-    // Up to the peak, and to the first row of a flat top (one answer whatever the seed).
-    while (rp + 1 < height && at(rp + 1) > at(rp)) ++rp;
-    while (rp > 0 && at(rp - 1) >= at(rp)) --rp;
     c.rp = rp;
     c.gmax = at(rp);
     if (c.gmax < o_.min_peak) return c;
@@ -702,21 +871,32 @@ class ColumnExtractor {
     // A first background: the darker of the valleys on either side, where the profile stops
     // falling (a rise of half min_contrast, or no new minimum for reach_ rows), at most
     // max_width_px rows out (a profile falling further is too wide, which its run then shows).
+    // (Branch-free but for the stop: the new minima of a noisy flank are unpredictable. The
+    // rise is compared as an integer, g - low > floor(min_contrast / 2), the same test.)
     double b0 = std::numeric_limits<double>::infinity();
+    const int rise = static_cast<int>(std::floor(0.5 * o_.min_contrast));
     for (int dir : {-1, 1}) {
-      int low = c.gmax, low_row = rp, last = rp;
-      for (int r = rp + dir; r >= 0 && r < height && std::abs(r - rp) <= o_.max_width_px;
-           r += dir) {
-        const int g = at(r);
-        last = r;
-        if (g < low) {
-          low = g;
-          low_row = r;
-        } else if (g > low + 0.5 * o_.min_contrast || std::abs(r - low_row) >= reach_) {
-          break;
+      const int end =
+          dir < 0 ? std::max(rp - o_.max_width_px, 0) : std::min(rp + o_.max_width_px, height - 1);
+      if (end == rp) continue;  // the frame's border
+      int low = c.gmax;
+      auto walk = [&](auto value) INSITU_LAMBDA_INLINE {
+        int low_row = rp;
+        for (int r = rp + dir;; r += dir) {
+          const int g = value(r);
+          const bool lower = g < low;
+          low_row = lower ? r : low_row;
+          low = lower ? g : low;
+          if ((g - low > rise) | (std::abs(r - low_row) >= reach_) | (r == end)) break;
         }
+      };
+      if (at.InTile(std::min(rp, end), std::max(rp, end))) {  // the usual case: straight reads
+        const T* row = at.Row(rp);
+        const ptrdiff_t step = at.n;
+        walk([&](int r) INSITU_LAMBDA_INLINE -> int { return row[(r - rp) * step]; });
+      } else {
+        walk(at);
       }
-      if (last == rp) continue;  // the frame's border
       b0 = std::min<double>(b0, low);
     }
     if (!std::isfinite(b0)) b0 = side;
@@ -843,7 +1023,10 @@ class ColumnExtractor {
   // Largest exact value of column u in blocks [w_lo, w_hi] outside [blo, bhi], only looking into
   // blocks whose bound (block maximum of v over columns u-1..u+1) exceeds `floor`; returns `floor`
   // when nothing exceeds it.
-  T MaxOutside(int u, int blo, int bhi, int w_lo, int w_hi, T floor, int* row_out) const {
+  T MaxOutside(const Profile& at, int blo, int bhi, int w_lo, int w_hi, T floor,
+               int* row_out) const {
+    const int u = at.u;
+    if (w_.upper[u] <= floor) return floor;  // nothing in the column exceeds it
     const int ul = median_ ? std::max(u - 1, 0) : u;
     const int ur = median_ ? std::min(u + 1, p_.width - 1) : u;
     T best = floor;
@@ -853,7 +1036,7 @@ class ColumnExtractor {
       if (Max(Max(bm[ul], bm[u]), bm[ur]) <= best) continue;
       const int r1 = std::min(p_.height, (b + 1) * block_rows_);
       for (int r = b * block_rows_; r < r1; ++r) {
-        const T v = ExactAt(u, r);
+        const T v = static_cast<T>(at(r));
         if (v > best) {
           best = v;
           *row_out = r;
@@ -865,9 +1048,9 @@ class ColumnExtractor {
 
   // Ridge R(b) of column u (RidgeBody's, one block).
   int RidgeAt(int u, int b) const {
-    if (b < 0 || b >= num_blocks_) return 0;
+    if (b < first_ || b > last_) return 0;
     const auto bm = [&](int i) {
-      return i >= 0 && i < num_blocks_
+      return i >= first_ && i <= last_
                  ? static_cast<int>(w_.blocks[static_cast<size_t>(i) * p_.width + u])
                  : 0;
     };
@@ -895,7 +1078,7 @@ class ColumnExtractor {
       // The highest ridge; with none, the brightest block (it will prove too wide or flat).
       int ab = w_.ridge_count[u] > 0 ? w_.ridge_block[u] : w_.argblock[u];
       if (window_ != nullptr) {
-        int b_lo = 0, b_hi = num_blocks_ - 1;
+        int b_lo = first_, b_hi = last_;
         if (!WindowBlocks(u, &b_lo, &b_hi)) {
           SetResult(u, StripeStatus::kNone, 0, 0, kNaN);
           continue;
@@ -920,27 +1103,54 @@ class ColumnExtractor {
     }
     // The band reaches one block beyond where a ridge looks: a weaker peak with the candidate
     // (its peak block, or its tail in the next) on one side that far shows no ridge of its own.
-    const int blo = std::max(abmin - ridge_blocks_ - 1, 0);
-    const int bhi = std::min(abmax + ridge_blocks_ + 1, num_blocks_ - 1);
+    const int blo = std::max(abmin - ridge_blocks_ - 1, first_);
+    const int bhi = std::min(abmax + ridge_blocks_ + 1, last_);
     const int rlo = blo * block_rows_;
     const int rhi = std::min(p_.height, (bhi + 1) * block_rows_) - 1;
-    const size_t tile_size = static_cast<size_t>(rhi - rlo + 3) * n;
+    // The tile reaches reach_ rows beyond the band: the pre-test's and Evaluate's looks around a
+    // peak in the band mostly stay inside it.
+    const int tlo = std::max(rlo - reach_, 0);
+    const int thi = std::min(rhi + reach_, p_.height - 1);
+    const size_t tile_size = static_cast<size_t>(thi - tlo + 3) * n;
     if (tile_size > w_.tile.size()) {  // not expected (Resize() covers the bands), but cheap
       for (auto* v : {&w_.lo, &w_.mid, &w_.hi, &w_.tile}) v->resize(tile_size);
+      w_.peak_flag.resize(tile_size);
     }
-    Tile(p_, u0, n, rlo, rhi, w_, median_);
+    Tile(p_, u0, n, tlo, thi, w_, median_);
+    const int rows = thi - tlo + 1;
+    const double top = std::numeric_limits<T>::max();
+    const double min_peak = std::ceil(o_.min_peak), min_contrast = std::ceil(o_.min_contrast);
+    if (min_peak <= top && min_contrast <= top) {
+      PeakFlags(w_.tile.data(), n, rows, reach_, static_cast<T>(std::max(min_peak, 0.0)),
+                static_cast<T>(std::max(min_contrast, 0.0)), w_.peak_flag.data(),
+                w_.peak_count.data());
+    } else {  // nothing clears them
+      std::fill_n(w_.peak_flag.begin(), static_cast<size_t>(rows) * n, 0);
+      std::fill_n(w_.peak_count.begin(), n, 0);
+    }
     const T* tile = w_.tile.data();
     for (int c = 0; c < n; ++c) {
-      if (w_.candidate[c]) Decide(u0 + c, tile + c, n, rlo, rhi, blo, bhi, w_.seed_block[c]);
+      if (w_.candidate[c]) {
+        Decide(u0 + c, tile + c, w_.peak_flag.data() + c, w_.peak_count[c], n, tlo, thi, blo, bhi,
+               w_.seed_block[c]);
+      }
     }
   }
 
   // One column: its candidate in the band, any other stripe-like run in the band or at another
   // ridge of the column, and the verdict.
-  void Decide(int u, const T* col, int n, int rlo, int rhi, int blo, int bhi, int seed_block) {
-    const auto at = [&](int r) INSITU_LAMBDA_INLINE -> int {
-      return r >= rlo && r <= rhi ? col[static_cast<ptrdiff_t>(r - rlo) * n] : ExactAt(u, r);
-    };
+  void Decide(int u, const T* col, const uint8_t* flag, int flags, int n, int tlo, int thi, int blo,
+              int bhi, int seed_block) {
+    const int rlo = blo * block_rows_;  // the band
+    const int rhi = std::min(p_.height, (bhi + 1) * block_rows_) - 1;
+    // The column's filtered profile: the tile in the band, exact values (each computed once)
+    // outside it. By value, so that Evaluate keeps it in registers.
+    const uint32_t stamp = ++w_.stamp;
+    if (stamp == 0) {  // the stamps wrapped: none is current
+      std::fill(w_.exact_stamp.begin(), w_.exact_stamp.end(), 0);
+      w_.stamp = 1;
+    }
+    const Profile at{this, u, col, n, tlo, thi, w_.stamp, w_.exact.data(), w_.exact_stamp.data()};
     // The seed: the brightest row of the seed block.
     const int b0 = seed_block * block_rows_;
     const int b1 = std::min(p_.height, b0 + block_rows_) - 1;
@@ -967,8 +1177,19 @@ class ColumnExtractor {
     const bool main_valid = main.status == StripeStatus::kValid;
     const int part_lo = main.rs - o_.min_peak_separation_px;
     const int part_hi = main.re + o_.min_peak_separation_px;
+    // Each peak once: a candidate depends on its peak only.
+    std::vector<int>& seen = w_.seen;
+    seen.assign(1, main.rp);
     auto consider = [&](int s) {
-      const Candidate other = Evaluate(u, s, at);
+      const int rp = Climb(s, at);
+      // More peaks than kMaxPeaks clear the pre-test only where min_contrast lies below the
+      // noise (options for another bit depth): the rest are not looked at, which bounds the
+      // time a column takes.
+      if (seen.size() > kMaxPeaks || std::find(seen.begin(), seen.end(), rp) != seen.end()) {
+        return;
+      }
+      seen.push_back(rp);
+      const Candidate other = EvaluatePeak(u, rp, at);
       if ((other.status != StripeStatus::kValid && other.status != StripeStatus::kSaturated) ||
           !Inside(u, other.rp)) {
         return;
@@ -988,30 +1209,55 @@ class ColumnExtractor {
     // Every peak of rows lo..hi (the first row of a flat top) other than the candidate's that
     // clears min_peak and min_contrast against the darker of the profile reach_ rows to either
     // side, as Evaluate's first test does.
-    auto peaks_in = [&](int lo, int hi, bool skip_band) {
+    // (In the band's interior PeakFlags has run that test.)
+    auto passes = [&](int r) {
+      const int g = at(r);
+      if (g < o_.min_peak || (r > 0 && at(r - 1) >= g) || (r + 1 < p_.height && at(r + 1) > g)) {
+        return false;
+      }
+      int side = std::numeric_limits<int>::max();
+      if (r - reach_ >= 0) side = at(r - reach_);
+      if (r + reach_ < p_.height) side = std::min(side, at(r + reach_));
+      return side == std::numeric_limits<int>::max() || g - side >= o_.min_contrast;
+    };
+    auto other_peak = [&](int r) {
+      if (r == main.rp || !Inside(u, r)) return;
+      if (main_valid && r >= part_lo && r <= part_hi && at(r) <= main.gmax) return;
+      consider(r);
+    };
+    auto peaks_in = [&](int lo, int hi) {  // outside the band
       for (int r = std::max(lo, 0); r <= std::min(hi, p_.height - 1); ++r) {
-        if (r == main.rp || (skip_band && r >= rlo && r <= rhi) || !Inside(u, r)) continue;
-        const int g = at(r);
-        if (main_valid && r >= part_lo && r <= part_hi && g <= main.gmax) continue;
-        if (g < o_.min_peak || (r > 0 && at(r - 1) >= g) || (r + 1 < p_.height && at(r + 1) > g)) {
-          continue;
-        }
-        int side = std::numeric_limits<int>::max();
-        if (r - reach_ >= 0) side = at(r - reach_);
-        if (r + reach_ < p_.height) side = std::min(side, at(r + reach_));
-        if (side != std::numeric_limits<int>::max() && g - side < o_.min_contrast) continue;
-        consider(r);
+        if (r >= rlo && r <= rhi) continue;
+        if (passes(r)) other_peak(r);
       }
     };
-    peaks_in(rlo, rhi, false);
-    int w_lo = 0, w_hi = num_blocks_ - 1;
+    const int flagged_lo = tlo + reach_, flagged_hi = thi - reach_;
+    auto flagged = [&](int r) { return flag[static_cast<ptrdiff_t>(r - tlo) * n] != 0; };
+    // Flagged rows all seen without a look when there are none, or one: the candidate's.
+    const bool main_flagged = main.rp >= flagged_lo && main.rp <= flagged_hi && flagged(main.rp);
+    const bool all_seen = flags == 0 || (flags == 1 && main_flagged);
+    for (int r = rlo; r <= rhi; ++r) {
+      if (all_seen && r == flagged_lo && flagged_lo <= flagged_hi) {
+        r = flagged_hi + 1;  // the unflagged rows only
+      }
+      if (r > rhi) break;
+      const bool peak = r >= flagged_lo && r <= flagged_hi ? flagged(r) : passes(r);
+      if (peak) other_peak(r);
+    }
+    int w_lo = first_, w_hi = last_;
     if (window_ != nullptr) WindowBlocks(u, &w_lo, &w_hi);
-    if (w_.ridge_count[u] >= 2 || (w_.ridge_count[u] == 1 && w_.ridge_block[u] != seed_block) ||
-        window_ != nullptr) {
-      for (int b = w_lo; b <= w_hi; ++b) {
-        if (b >= blo && b <= bhi) continue;
-        const int r = RidgeAt(u, b);
-        if (r < RidgeFloor() || r <= RidgeAt(u, b - 1) || r < RidgeAt(u, b + 1)) continue;
+    const int ridges = w_.ridge_count[u];
+    if (ridges >= 2 || (ridges == 1 && w_.ridge_block[u] != seed_block)) {
+      // Pass 1's list of the column's ridges, or (more than it holds) the column's blocks.
+      const bool listed = ridges <= kRidgeSlots;
+      for (int i = listed ? 0 : w_lo; i <= (listed ? ridges - 1 : w_hi); ++i) {
+        const int b =
+            listed ? static_cast<int>(w_.ridge_slots[static_cast<size_t>(i) * p_.width + u]) : i;
+        if (b < w_lo || b > w_hi || (b >= blo && b <= bhi)) continue;
+        if (!listed) {
+          const int r = RidgeAt(u, b);
+          if (r < RidgeFloor() || r <= RidgeAt(u, b - 1) || r < RidgeAt(u, b + 1)) continue;
+        }
         const int r0 = b * block_rows_;
         const int r1 = std::min(p_.height, r0 + block_rows_) - 1;
         int best = r0;
@@ -1028,7 +1274,7 @@ class ColumnExtractor {
                      [](const Candidate& c) { return c.status == StripeStatus::kValid; })) {
       int row = -1;
       const T floor = static_cast<T>(std::max(0, main.gmax));
-      if (MaxOutside(u, blo, bhi, w_lo, w_hi, floor, &row) > main.gmax && row >= 0) {
+      if (MaxOutside(at, blo, bhi, w_lo, w_hi, floor, &row) > main.gmax && row >= 0) {
         consider(row);
       }
     }
@@ -1036,7 +1282,7 @@ class ColumnExtractor {
     collect_offband = false;
     for (size_t i = 0; i < offband.size(); ++i) {
       const int r = offband[i];
-      peaks_in(r - near_rows, r + near_rows, true);
+      peaks_in(r - near_rows, r + near_rows);
     }
     const Candidate* chosen = nullptr;
     const StripeStatus verdict = Verdict(found, &chosen);
@@ -1229,8 +1475,10 @@ class ColumnExtractor {
   bool median_ = true;
   int block_rows_ = kMinBlockRows;
   int num_blocks_ = 0;
+  int first_ = 0, last_ = 0;  // the blocks pass 1 has read (WindowedBlocks)
   int ridge_blocks_ = 2;
   int reach_ = 10;
+  int ridge_floor_ = 1;
   const StripeWindow* window_;
 };
 
