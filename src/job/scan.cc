@@ -515,11 +515,12 @@ struct PointerOff {
 };
 
 // The stripe's brightness target for auto exposure: the 98th percentile of the lit columns'
-// peaks at 60 % of full scale. Speckle (contrast ~0.2) spreads the columns' peaks and the
-// lines between the pre-shot ones may be brighter (a crown, a steeper face toward the
-// camera): 40 % of headroom keeps those below saturation, and 60 % of full scale is still
-// 150 levels of an 8-bit camera, far above the extraction's thresholds.
-constexpr double kExposureTarget = 0.6;
+// peaks at 55 % of full scale. The peaks are the filtered profile's (3x3 median); saturation
+// is the raw pixels', which speckle (contrast ~0.2 at a point, grains about a binned pixel)
+// lifts above them, and the lines between the pre-shot ones may be brighter (a crown, a
+// steeper face toward the camera): 45 % of headroom keeps those below saturation, and 55 % of
+// full scale is still 140 levels of an 8-bit camera, far above the extraction's thresholds.
+constexpr double kExposureTarget = 0.55;
 constexpr double kExposurePercentile = 0.98;
 
 // Auto exposure: pre-shots on the first, middle and last lines (software trigger), each

@@ -55,29 +55,63 @@ const float* NoiseSource::GaussianTable() {
 double SpeckleFactor(int u, int v, double grain_px, double contrast, uint64_t seed) {
   // Lattice of random phasors every half grain, smoothed by a Gaussian kernel whose width
   // sets the correlation length; the intensity is normalised by its local expectation so the
-  // statistics do not depend on where the pixel falls in the lattice.
-  const double spacing = std::max(0.5, 0.5 * grain_px);
-  const double sigma = 0.5 * grain_px;
+  // statistics do not depend on where a point falls in the lattice. The pixel integrates the
+  // intensity over its area: the mean of points on an S x S grid inside it, S such that they
+  // lie closer than the correlation length (a pixel as large as a grain sees a softer speckle
+  // than a point does).
+  // The intensity's correlation is exp(-d^2 / (2 sigma^2)) for a kernel of width sigma; a
+  // circular pupil's is the Airy pattern [2 J1(v) / v]^2 (Goodman, Speckle Phenomena in
+  // Optics, 4.4), whose half width at half maximum is 0.515 lambda N where the grain (its
+  // first zero) is 1.22 lambda N: sigma = 0.515 / 1.22 / sqrt(2 ln 2) grain = 0.358 grain
+  // gives the same half width.
+  const double sigma = 0.358 * grain_px;
+  const double spacing = std::max(0.5, sigma);
   const double inv2s2 = 1.0 / (2.0 * sigma * sigma);
   const double reach = 2.0 * sigma;
-  const double x = u / spacing, y = v / spacing;
-  const int64_t i0 = static_cast<int64_t>(std::floor((u - reach) / spacing));
-  const int64_t i1 = static_cast<int64_t>(std::ceil((u + reach) / spacing));
-  const int64_t j0 = static_cast<int64_t>(std::floor((v - reach) / spacing));
-  const int64_t j1 = static_cast<int64_t>(std::ceil((v + reach) / spacing));
-  double sum_re = 0, sum_im = 0, sum_w2 = 0;
-  for (int64_t j = j0; j <= j1; ++j) {
-    for (int64_t i = i0; i <= i1; ++i) {
-      const double dx = (i - x) * spacing, dy = (j - y) * spacing;
-      const double wgt = std::exp(-(dx * dx + dy * dy) * inv2s2);
-      double re, im;
-      NodeAmplitude(i, j, seed, &re, &im);
-      sum_re += wgt * re;
-      sum_im += wgt * im;
-      sum_w2 += wgt * wgt;
+  const int sub = static_cast<int>(std::clamp(std::ceil(1.0 / sigma) + 1.0, 2.0, 4.0));
+  // The nodes any sample reaches, their amplitudes fetched once.
+  constexpr int kMaxNodes = 16;
+  const int64_t i0 = static_cast<int64_t>(std::floor((u - 0.5 - reach) / spacing));
+  const int64_t i1 = static_cast<int64_t>(std::ceil((u + 0.5 + reach) / spacing));
+  const int64_t j0 = static_cast<int64_t>(std::floor((v - 0.5 - reach) / spacing));
+  const int64_t j1 = static_cast<int64_t>(std::ceil((v + 0.5 + reach) / spacing));
+  const int ni = static_cast<int>(std::min<int64_t>(i1 - i0 + 1, kMaxNodes));
+  const int nj = static_cast<int>(std::min<int64_t>(j1 - j0 + 1, kMaxNodes));
+  double re[kMaxNodes][kMaxNodes], im[kMaxNodes][kMaxNodes];
+  for (int b = 0; b < nj; ++b) {
+    for (int a = 0; a < ni; ++a) NodeAmplitude(i0 + a, j0 + b, seed, &re[b][a], &im[b][a]);
+  }
+  double intensity = 0.0;
+  for (int sy = 0; sy < sub; ++sy) {
+    const double y = v - 0.5 + (sy + 0.5) / sub;
+    double wy[kMaxNodes];
+    for (int b = 0; b < nj; ++b) {
+      const double dy = (j0 + b) * spacing - y;
+      wy[b] = std::abs(dy) <= reach ? std::exp(-dy * dy * inv2s2) : 0.0;
+    }
+    for (int sx = 0; sx < sub; ++sx) {
+      const double x = u - 0.5 + (sx + 0.5) / sub;
+      double wx[kMaxNodes];
+      for (int a = 0; a < ni; ++a) {
+        const double dx = (i0 + a) * spacing - x;
+        wx[a] = std::abs(dx) <= reach ? std::exp(-dx * dx * inv2s2) : 0.0;
+      }
+      double sum_re = 0, sum_im = 0, sum_w2 = 0;
+      for (int b = 0; b < nj; ++b) {
+        if (wy[b] == 0.0) continue;
+        for (int a = 0; a < ni; ++a) {
+          const double wgt = wy[b] * wx[a];
+          sum_re += wgt * re[b][a];
+          sum_im += wgt * im[b][a];
+          sum_w2 += wgt * wgt;
+        }
+      }
+      // No node within reach: grains far below the sample spacing, which the pixel averages
+      // to their mean.
+      intensity += sum_w2 > 0 ? (sum_re * sum_re + sum_im * sum_im) / (2.0 * sum_w2) : 1.0;
     }
   }
-  const double intensity = (sum_re * sum_re + sum_im * sum_im) / (2.0 * sum_w2);
+  intensity /= sub * sub;
   return std::max(0.0, 1.0 - contrast + contrast * intensity);
 }
 

@@ -64,10 +64,11 @@ class NoiseSource {
   uint64_t s_[4];
 };
 
-// Multiplicative speckle factor at pixel (u, v), mean 1, standard deviation `contrast`:
-// a fully developed speckle intensity |A|^2 (A: complex Gaussian field with correlation
-// length `grain_px`, exponential statistics) blended with a uniform part,
-// S = 1 - contrast + contrast * |A|^2 / <|A|^2>.
+// Multiplicative speckle factor of pixel (u, v), mean 1: a fully developed speckle intensity
+// |A|^2 (A: complex Gaussian field with correlation length `grain_px`, exponential statistics)
+// blended with a uniform part, S = 1 - contrast + contrast * |A|^2 / <|A|^2>, integrated over
+// the pixel's area. `contrast` is the standard deviation of S at a point; a pixel's is lower
+// where the pixel is not much smaller than a grain.
 double SpeckleFactor(int u, int v, double grain_px, double contrast, uint64_t seed);
 
 }  // namespace insitu::sim

@@ -1083,7 +1083,9 @@ class ColumnExtractor {
           SetResult(u, StripeStatus::kNone, 0, 0, kNaN);
           continue;
         }
-        if (ab < b_lo || ab > b_hi) ab = BestBlockIn(u, b_lo, b_hi);
+        // No ridge in it: its best ridge below the floor, or its brightest block (what lies
+        // outside the window takes no part).
+        if (ab < b_lo || ab > b_hi || w_.ridge_count[u] == 0) ab = BestBlockIn(u, b_lo, b_hi);
       }
       w_.candidate[c] = 1;
       w_.seed_block[c] = static_cast<T>(ab);

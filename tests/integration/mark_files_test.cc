@@ -46,7 +46,7 @@ const char kQr[] =
 // At the default settings (no camera.exposure_ms: auto exposure) the short line scans fully:
 // the stripe is found in the columns the lines cover (all but the arc's steep flanks and the
 // speckle's darkest grains: over 80 %), and under 1 % of the lit ones saturate (the target
-// puts the brightest 2 % at 60 % of full scale). With the old fixed 50 ms the stripe
+// puts the brightest 2 % at 55 % of full scale). With the old fixed 50 ms the stripe
 // saturates and the job fails saying so, not downstream.
 TEST(MarkFiles, AShortLineOnABrightPartScansFullyAtDefaultSettings) {
   const fs::path dir = fs::temp_directory_path() / "insitu_mark_files_short";
