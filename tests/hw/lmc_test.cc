@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -295,6 +296,8 @@ TEST(Lmc, MarkingThroughTheBoardMatchesTheHeadItself) {
     ASSERT_TRUE(lmc->Disarm().ok());
     EXPECT_FALSE(log->log().laser_enabled);
     EXPECT_EQ(log->log().lists_executed, 1);
+    EXPECT_EQ(log->log().end_of_lists, 1);  // the list ran to its end
+    EXPECT_EQ(log->log().ports, 0);         // the list's ports off again after it
 
     const auto& a = direct_world->mark_pulses();
     const auto& b = board_world->mark_pulses();
@@ -361,6 +364,81 @@ TEST(Lmc, LongListsStreamInPackets) {
   EXPECT_NEAR(ratio, 1.0, 0.005) << board_world->mark_pulses().size();
 }
 
+// The board runs a list until it executes an end-of-list. Lists of every length around a
+// packet's 256 commands go out with exactly one before their padding (a list filling its last
+// packet gets a packet for it), and the emulator, sent them as the scanner sends a list, runs
+// each to that end; without it the board stays busy, waiting for the rest of the list.
+uint16_t StatusWord(Transport& board, uint16_t op) {
+  const auto bytes = SingleCommand(op);
+  EXPECT_TRUE(board.Write(bytes.data(), bytes.size()).ok());
+  uint8_t reply[kReplyBytes] = {};
+  EXPECT_TRUE(board.Read(reply, sizeof reply).ok());
+  return static_cast<uint16_t>(reply[6] | (reply[7] << 8));
+}
+
+// ResetList, each packet with SetEndOfList, ExecuteList after the first; then polls until the
+// board is not busy. False if it still is after `wait_s`.
+bool SendAndWait(Transport& board, const std::vector<std::vector<uint8_t>>& packets,
+                 double wait_s) {
+  StatusWord(board, kResetList);
+  for (size_t i = 0; i < packets.size(); ++i) {
+    EXPECT_TRUE(board.Write(packets[i].data(), packets[i].size()).ok());
+    StatusWord(board, kSetEndOfList);
+    if (i == 0) StatusWord(board, kExecuteList);
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  while (std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() < wait_s) {
+    if (!(StatusWord(board, kGetVersion) & kStatusBusy)) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  return false;
+}
+
+TEST(Lmc, EveryListEndsOnceWhateverItsLength) {
+  sim::WorldOptions w;
+  w.part.kind = "none";
+  for (size_t n : {1u, 255u, 256u, 257u, 511u, 512u}) {
+    SCOPED_TRACE("list of " + std::to_string(n) + " commands");
+    std::vector<Command> list;
+    for (size_t k = 0; k < n; ++k) {  // jumps back and forth, 1 mm apart
+      list.push_back(
+          {kJumpTo, static_cast<uint16_t>(k % 2 ? 0x8200 : 0x8000), 0x8000, 0, 0x200, 0});
+    }
+    const auto packets = Packets(list);
+    ASSERT_EQ(packets.size(), n / kPacketCommands + 1);
+    // Decoded, the list ends where its commands do; everything after is padding.
+    std::vector<Command> decoded;
+    for (const auto& p : packets) {
+      for (size_t k = 0; k < kPacketCommands; ++k) decoded.push_back(DecodeCommand(&p[k * 12]));
+    }
+    const auto end = std::find_if(decoded.begin(), decoded.end(),
+                                  [](const Command& c) { return c[0] == kEndOfList; });
+    ASSERT_NE(end, decoded.end());
+    EXPECT_EQ(static_cast<size_t>(end - decoded.begin()), n);
+    EXPECT_TRUE(
+        std::all_of(end, decoded.end(), [](const Command& c) { return c[0] == kEndOfList; }));
+
+    SimBoard board(std::make_shared<sim::SimWorld>(w), SimHeadBoard());
+    ASSERT_TRUE(SendAndWait(board, packets, 5.0));
+    EXPECT_EQ(board.log().lists_executed, 1);
+    EXPECT_EQ(board.log().end_of_lists, 1);
+  }
+  // A packet of 256 commands and no end: the board waits for the rest, busy, until stopped.
+  std::vector<uint8_t> unended;
+  for (size_t k = 0; k < kPacketCommands; ++k) {
+    for (uint16_t word : {static_cast<uint16_t>(kJumpTo), uint16_t{0x8000}, uint16_t{0x8000},
+                          uint16_t{0}, uint16_t{0}, uint16_t{0}}) {
+      unended.push_back(static_cast<uint8_t>(word & 0xFF));
+      unended.push_back(static_cast<uint8_t>(word >> 8));
+    }
+  }
+  SimBoard board(std::make_shared<sim::SimWorld>(w), SimHeadBoard());
+  EXPECT_FALSE(SendAndWait(board, {unended}, 0.3));
+  EXPECT_GE(board.log().starved, 1);
+  EXPECT_EQ(board.log().end_of_lists, 0);
+  EXPECT_FALSE(StatusWord(board, kStopExecute) & kStatusBusy);
+}
+
 TEST(Lmc, AbortStopsTheBoardAndTheLaser) {
   sim::WorldOptions w;
   w.part.kind = "none";
@@ -388,6 +466,9 @@ TEST(Lmc, AbortStopsTheBoardAndTheLaser) {
   EXPECT_FALSE(lmc->armed());
   EXPECT_FALSE(log->log().laser_enabled);
   EXPECT_GE(log->log().stops, 1);
+  // Then the flush: an empty list executed to its end, the ports off.
+  EXPECT_EQ(log->log().end_of_lists, 1);
+  EXPECT_EQ(log->log().ports, 0);
   const sim::ListAbortTruth& a = world->last_list_abort();
   ASSERT_TRUE(a.aborted);
   double last = 0.0;

@@ -5,8 +5,9 @@
 //
 // Protocol facts (docs/hardware.md, "LMC"): single commands are 12 bytes, six little-endian
 // uint16 (opcode, p1..p5), answered by 8 bytes whose word 3 is the status (BUSY 0x04,
-// READY 0x20); lists go out in 3072-byte packets of 256 such commands, padded with end-of-list
-// (0x8002). Positions are 16-bit, 65536 units across the lens field, centre 0x8000.
+// READY 0x20); lists go out in 3072-byte packets of 256 such commands, the list always ended by
+// an end-of-list (0x8002) and its last packet padded with more. Positions are 16-bit, 65536
+// units across the lens field, centre 0x8000.
 //
 // The RTC-style GalvoList maps onto list opcodes: the list's parameters first (speeds in units
 // per ms, laser on/off delays and the polygon delay in us, mark current 0..0xFFF from the
@@ -116,7 +117,9 @@ Result<std::vector<Command>> EncodeTriggeredSweep(const TriggeredSweep& sweep,
                                                   const BoardOptions& options,
                                                   std::array<uint16_t, 2>* position,
                                                   uint16_t* z_word);
-// 3072-byte packets, the last padded with end-of-list.
+// 3072-byte packets: the commands, an end-of-list after them (unless they end with one), the
+// last packet padded with more. A list of exactly 256 k commands takes a packet of its own for
+// its end.
 std::vector<std::vector<uint8_t>> Packets(const std::vector<Command>& commands);
 // One 12-byte single command.
 std::vector<uint8_t> SingleCommand(uint16_t op, uint16_t p1 = 0, uint16_t p2 = 0, uint16_t p3 = 0,

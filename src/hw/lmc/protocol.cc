@@ -267,8 +267,13 @@ Result<std::vector<Command>> EncodeTriggeredSweep(const TriggeredSweep& sweep,
 }
 
 std::vector<std::vector<uint8_t>> Packets(const std::vector<Command>& commands) {
+  // The list, then its end-of-list (the board runs a list until it meets one: a list filling
+  // its last packet exactly would run on into whatever the board's list memory holds), then
+  // the last packet's padding.
+  const bool ends = !commands.empty() && commands.back()[0] == kEndOfList;
+  const size_t total = commands.size() + (ends ? 0 : 1);
   std::vector<std::vector<uint8_t>> packets;
-  for (size_t first = 0; first < commands.size(); first += kPacketCommands) {
+  for (size_t first = 0; first < total; first += kPacketCommands) {
     std::vector<uint8_t> packet;
     packet.reserve(kPacketBytes);
     for (size_t k = 0; k < kPacketCommands; ++k) {

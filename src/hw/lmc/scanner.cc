@@ -107,6 +107,8 @@ class BoardScanner : public Scanner {
     if (marks) INSITU_RETURN_IF_ERROR(Single(kFiberSetMo, 1).status());
     INSITU_RETURN_IF_ERROR(Run(commands, control, estimate_s));
     if (marks) INSITU_RETURN_IF_ERROR(Single(kFiberSetMo, 0).status());
+    // The list set its ports (list_ports): off again, as they were before it.
+    INSITU_RETURN_IF_ERROR(Single(kWritePort, 0).status());
     position_ = position;
     z_word_ = z_word;
     if (control.progress) control.progress(1.0);
@@ -237,7 +239,9 @@ class BoardScanner : public Scanner {
   }
 
   // StopExecute, the oscillator closed, the laser output off, the list reset: every one tried
-  // whatever the others did; the first failure is returned.
+  // whatever the others did; the first failure is returned. Then, on a board that answered,
+  // the flush an idle board expects (an empty list: one packet of end-of-list, executed, so
+  // the next list starts on a list memory that ends) and the ports off.
   Status Abort() {
     armed_ = false;
     z_word_ = 0;
@@ -248,7 +252,22 @@ class BoardScanner : public Scanner {
       const Status s = Single(op, p1).status();
       if (!s.ok() && first.ok()) first = s;
     }
-    return first;
+    if (!first.ok()) return first;
+    const std::vector<uint8_t> empty = Packets({}).front();
+    INSITU_RETURN_IF_ERROR(transport_->Write(empty.data(), empty.size()));
+    for (uint16_t op : {kSetEndOfList, kExecuteList}) INSITU_RETURN_IF_ERROR(Single(op).status());
+    // The empty list takes the board a tick; idle again within half a second or named.
+    const auto start = std::chrono::steady_clock::now();
+    for (;;) {
+      INSITU_ASSIGN_OR_RETURN(const uint16_t status, Single(kGetVersion));
+      if (!(status & kStatusBusy)) break;
+      if (std::chrono::steady_clock::now() - start > std::chrono::milliseconds(500)) {
+        return Status(StatusCode::kDeviceError, "the board stayed busy after its list was stopped");
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(options_.poll_ms));
+    }
+    pointer_on_ = false;
+    return Single(kWritePort, 0).status();
   }
 
   std::unique_ptr<Transport> transport_;

@@ -18,7 +18,8 @@ struct SimBoard::Impl {
   std::vector<Command> buffer;  // received, not yet executing
   bool list_open = false;       // ExecuteList since the last ResetList: later packets run on
   std::thread runner;
-  std::atomic<bool> running{false};
+  std::atomic<bool> running{false};  // a list executes (BUSY): until its end-of-list, or stopped
+  bool starved = false;  // it ran out of commands before its end-of-list: busy, awaiting more
   std::atomic<bool> abort{false};
   SimBoardLog log;
   uint16_t ports_now = 0;  // the runner's port word during a triggered sweep
@@ -47,25 +48,39 @@ struct SimBoard::Impl {
     if (runner.joinable()) runner.join();
   }
 
-  // Starts the runner on what is buffered (under mutex).
+  // Starts the runner on what is buffered (under mutex), or resumes a starved list with it.
+  // The board runs a list until it executes an end-of-list; a list whose commands run out
+  // before one keeps the board busy, waiting for the rest (as a real board does, or runs on
+  // into stale list memory), until more packets come or StopExecute.
   void StartLocked() {
-    if (buffer.empty() || running) return;
-    if (runner.joinable()) runner.join();  // finished: running is false
+    if (buffer.empty() || (running && !starved)) return;
+    if (runner.joinable()) runner.join();  // finished, or starved: the thread has returned
+    if (!starved) ++log.lists_executed;
+    starved = false;
     std::vector<Command> commands;
     commands.swap(buffer);
     running = true;
     abort = false;
-    ++log.lists_executed;
     runner = std::thread([this, commands = std::move(commands)]() mutable {
       for (;;) {
-        Execute(commands, /*locked=*/false);
+        const bool ended = Execute(commands, /*locked=*/false);
         std::lock_guard<std::mutex> lock(mutex);
-        if (list_open && !buffer.empty() && !abort) {  // packets that streamed in meanwhile
+        if (abort) {
+          running = false;
+          return;
+        }
+        if (ended) {
+          ++log.end_of_lists;
+          running = false;
+          return;
+        }
+        if (list_open && !buffer.empty()) {  // packets that streamed in meanwhile
           commands.clear();
           commands.swap(buffer);
           continue;
         }
-        running = false;
+        starved = true;  // still running: BUSY until the rest of the list comes
+        ++log.starved;
         return;
       }
     });
@@ -91,13 +106,14 @@ struct SimBoard::Impl {
   // trigger rises (the camera exposes from there), then passes back and forth: the world's
   // pointer sweeps the line between its start and the first pass's end, and the pulse comes
   // after the jump and the settle on the world's clock.
-  void ExecuteSweep(const std::vector<Command>& commands) {
+  // True once it has executed the list's end-of-list.
+  bool ExecuteSweep(const std::vector<Command>& commands) {
     if (!sweep.active) {
       sweep.active = true;
       world->SetHeadRunning(true);
     }
     for (const Command& c : commands) {
-      if (abort) return;
+      if (abort) return false;
       switch (c[0]) {
         case kJumpSpeed:
           params.jump_speed_mm_per_s = Mm(c[1]);
@@ -135,13 +151,14 @@ struct SimBoard::Impl {
           sweep.at = q;
           break;
         }
-        case kEndOfList:  // the padding of the list's last packet: the sweep is over
+        case kEndOfList:  // the list's end: the sweep is over
           EndSweep();
-          return;
+          return true;
         default:
           break;
       }
     }
+    return false;
   }
 
   // The sweep's list has run out (its end-of-list padding; or the host stopped it, cleared
@@ -156,9 +173,10 @@ struct SimBoard::Impl {
 
   double Mm(uint16_t speed_word) const { return speed_word / units_per_ms_per_mm_s; }
 
-  // Runs a list on the head. Called with the mutex held (light lists) or not (the runner):
-  // it touches the shared state only through `shared`.
-  void Execute(const std::vector<Command>& commands, bool locked = true) {
+  // Runs a list on the head up to its end-of-list (true once executed; what follows it is not
+  // the list). Called with the mutex held (light lists) or not (the runner): it touches the
+  // shared state only through `shared`.
+  bool Execute(const std::vector<Command>& commands, bool locked = true) {
     std::unique_lock<std::mutex> shared(mutex, std::defer_lock);
     if (!locked) shared.lock();
     uint16_t ports = log.ports;
@@ -166,20 +184,24 @@ struct SimBoard::Impl {
                                                 [&](const Command& c) { return Rises(c); }))) {
       ports_now = ports;
       shared.unlock();
-      ExecuteSweep(commands);
+      const bool ended = ExecuteSweep(commands);
       shared.lock();
       log.ports = ports_now;
-      return;
+      return ended;
     }
     // The laser emits only with its output enabled and the master oscillator open.
     const bool laser_enabled = log.laser_enabled && log.mo_open;
     if (!locked) shared.unlock();
     std::vector<sim::ListMove> moves;
     bool marks = false;
+    bool ended = false;
     for (const Command& c : commands) {
+      if (ended) break;
       switch (c[0]) {
-        case kReadyMark:
         case kEndOfList:
+          ended = true;
+          break;
+        case kReadyMark:
           break;
         case kDelayTime:
           if (moves.empty()) {
@@ -234,14 +256,15 @@ struct SimBoard::Impl {
     if (!locked) shared.lock();
     log.ports = ports;
     if (!locked) shared.unlock();
-    if (moves.empty()) return;
+    if (moves.empty()) return ended;
     if (!marks && (ports & options.pointer_port) && moves.size() >= 2) {
       // A light list: the pointer sweeps between its first two points until stopped.
       (void)world->StartPointerLine(moves[0].to_in_galvo, moves[1].to_in_galvo,
                                     params.jump_speed_mm_per_s);
-      return;
+      return ended;
     }
     (void)world->ExecuteMarkingList(moves, params, &abort);
+    return ended;
   }
 
   void Handle(const Command& c) {
@@ -262,7 +285,7 @@ struct SimBoard::Impl {
           std::vector<Command> commands;
           commands.swap(buffer);
           ++log.lists_executed;
-          Execute(commands);
+          if (Execute(commands)) ++log.end_of_lists;
         } else {
           StartLocked();
         }
@@ -272,6 +295,8 @@ struct SimBoard::Impl {
         abort = true;
         buffer.clear();
         list_open = false;
+        running = false;  // the runner has returned (Write joined it); a starved list ends
+        starved = false;
         EndSweep();  // the runner has stopped (Write joined it)
         world->StopPointer();
         break;

@@ -18,6 +18,8 @@ struct SimBoardLog {
   int single_commands = 0;
   int packets = 0;
   int lists_executed = 0;
+  int end_of_lists = 0;  // end-of-list commands executed: one per list that ended
+  int starved = 0;       // times a list's commands ran out before its end (the board waits)
   int stops = 0;
   bool laser_enabled = false;
   bool mo_open = false;  // the fibre laser's master oscillator
