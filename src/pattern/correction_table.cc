@@ -78,7 +78,8 @@ Result<CorrectionTable> CorrectionTable::Parse(const std::string& text, const st
   CorrectionTable t;
   std::vector<double> xs, ys;
   for (const Row& r : rows) {
-    for (auto [list, v] : {std::pair{&xs, r.x}, std::pair{&ys, r.y}}) {
+    for (const auto& [list, value] : {std::pair{&xs, r.x}, std::pair{&ys, r.y}}) {
+      const double v = value;  // (a structured binding is not captured by clang 14's lambdas)
       if (std::none_of(list->begin(), list->end(),
                        [&](double u) { return std::abs(u - v) < 1e-9; })) {
         list->push_back(v);
