@@ -439,6 +439,19 @@ TEST(Lmc, EveryListEndsOnceWhateverItsLength) {
   EXPECT_FALSE(StatusWord(board, kStopExecute) & kStatusBusy);
 }
 
+// GotoXY carries the distance from where the head is, as a list's JumpTo does (x, y, angle 0,
+// distance): 10 mm on a 163 mm lens is 10 x 65536 / 163 = 4020.6 units, truncated.
+TEST(Lmc, GotoCarriesItsDistance) {
+  sim::WorldOptions w;
+  w.part.kind = "none";
+  auto board = std::make_unique<SimBoard>(std::make_shared<sim::SimWorld>(w), SimHeadBoard());
+  const SimBoard* log = board.get();
+  auto lmc = MakeScanner(std::move(board), SimHeadBoard());
+  ASSERT_TRUE(lmc->StartPointerLine({10.0, 0.0, 0.0}, {20.0, 0.0, 0.0}, 100.0).ok());
+  ASSERT_TRUE(lmc->StopPointer().ok());
+  EXPECT_NEAR(log->log().last_goto_distance, 10.0 * 65536.0 / 163.0, 1.0);  // a unit's floor
+}
+
 TEST(Lmc, AbortStopsTheBoardAndTheLaser) {
   sim::WorldOptions w;
   w.part.kind = "none";

@@ -125,6 +125,9 @@ std::vector<std::vector<uint8_t>> Packets(const std::vector<Command>& commands);
 std::vector<uint8_t> SingleCommand(uint16_t op, uint16_t p1 = 0, uint16_t p2 = 0, uint16_t p3 = 0,
                                    uint16_t p4 = 0, uint16_t p5 = 0);
 Command DecodeCommand(const uint8_t* bytes);
+// GotoXY to `to` from where the head is (`from`): x, y, angle 0 and the straight distance in
+// units (truncated, at most 0xFFFF), as a list's JumpTo carries it.
+std::vector<uint8_t> GotoXY(const std::array<uint16_t, 2>& from, const std::array<uint16_t, 2>& to);
 // One line per command: "listJumpTo           ba2e 45d1 0000 5248 0000".
 std::string FormatCommands(const std::vector<Command>& commands);
 

@@ -30,6 +30,11 @@ uint16_t Distance(const std::array<uint16_t, 2>& a, const std::array<uint16_t, 2
 
 }  // namespace
 
+std::vector<uint8_t> GotoXY(const std::array<uint16_t, 2>& from,
+                            const std::array<uint16_t, 2>& to) {
+  return SingleCommand(kGotoXY, to[0], to[1], 0, Distance(from, to));
+}
+
 Status UsbSelector::Validate() const {
   if (timeout_ms < 1 || timeout_ms > 10000) return InvalidArgument("timeout_ms must be in 1..10000");
   if (retries < 0 || retries > 10) return InvalidArgument("retries must be in 0..10");

@@ -139,7 +139,9 @@ class BoardScanner : public Scanner {
  private:
   // One command and its status word. Errors: device_error from the transport.
   Result<uint16_t> Single(uint16_t op, uint16_t p1 = 0, uint16_t p2 = 0, uint16_t p3 = 0) {
-    const std::vector<uint8_t> bytes = SingleCommand(op, p1, p2, p3);
+    return Single(SingleCommand(op, p1, p2, p3));
+  }
+  Result<uint16_t> Single(const std::vector<uint8_t>& bytes) {
     INSITU_RETURN_IF_ERROR(transport_->Write(bytes.data(), bytes.size()));
     uint8_t reply[kReplyBytes];
     INSITU_RETURN_IF_ERROR(transport_->Read(reply, sizeof reply));
@@ -177,7 +179,7 @@ class BoardScanner : public Scanner {
 
   Status Goto(const Eigen::Vector3d& p) {
     INSITU_ASSIGN_OR_RETURN(const auto units, ToUnits(p.x(), p.y(), options_));
-    INSITU_RETURN_IF_ERROR(Single(kGotoXY, units[0], units[1]).status());
+    INSITU_RETURN_IF_ERROR(Single(GotoXY(position_, units)).status());
     position_ = units;
     return Status::Ok();
   }

@@ -316,6 +316,7 @@ struct SimBoard::Impl {
         if (!(c[1] & options.pointer_port)) world->StopPointer();
         break;
       case kGotoXY:
+        log.last_goto_distance = c[4];
         if (!running) {
           const auto xy = FromUnits(c[1], c[2], options);
           (void)world->MoveHead(Eigen::Vector3d(xy[0], xy[1], z_mm));

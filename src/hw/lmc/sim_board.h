@@ -24,6 +24,7 @@ struct SimBoardLog {
   bool laser_enabled = false;
   bool mo_open = false;  // the fibre laser's master oscillator
   uint16_t ports = 0;
+  uint16_t last_goto_distance = 0;                 // the last GotoXY's distance word (p4)
   std::vector<std::array<int32_t, 2>> correction;  // as uploaded, signed
 };
 
