@@ -68,7 +68,8 @@ double SpeckleFactor(int u, int v, double grain_px, double contrast, uint64_t se
   const double spacing = std::max(0.5, sigma);
   const double inv2s2 = 1.0 / (2.0 * sigma * sigma);
   const double reach = 2.0 * sigma;
-  const int sub = static_cast<int>(std::clamp(std::ceil(1.0 / sigma) + 1.0, 2.0, 4.0));
+  const int sub =
+      static_cast<int>(std::clamp(std::ceil(1.0 / sigma) + 1.0, 2.0, 4.0));  // <= kMaxSub
   // The nodes any sample reaches, their amplitudes fetched once.
   constexpr int kMaxNodes = 16;
   const int64_t i0 = static_cast<int64_t>(std::floor((u - 0.5 - reach) / spacing));
@@ -81,21 +82,24 @@ double SpeckleFactor(int u, int v, double grain_px, double contrast, uint64_t se
   for (int b = 0; b < nj; ++b) {
     for (int a = 0; a < ni; ++a) NodeAmplitude(i0 + a, j0 + b, seed, &re[b][a], &im[b][a]);
   }
+  // The kernel's weights along one axis: of the n nodes from `origin` for sample k of the
+  // pixel at `centre` (the kernel is separable).
+  constexpr int kMaxSub = 4;
+  const auto weights = [&](int centre, int64_t origin, int n, int k, double* w) {
+    const double at = centre - 0.5 + (k + 0.5) / sub;
+    for (int i = 0; i < n; ++i) {
+      const double d = (origin + i) * spacing - at;
+      w[i] = std::abs(d) <= reach ? std::exp(-d * d * inv2s2) : 0.0;
+    }
+  };
+  double wxs[kMaxSub][kMaxNodes];
+  for (int sx = 0; sx < sub; ++sx) weights(u, i0, ni, sx, wxs[sx]);
   double intensity = 0.0;
   for (int sy = 0; sy < sub; ++sy) {
-    const double y = v - 0.5 + (sy + 0.5) / sub;
     double wy[kMaxNodes];
-    for (int b = 0; b < nj; ++b) {
-      const double dy = (j0 + b) * spacing - y;
-      wy[b] = std::abs(dy) <= reach ? std::exp(-dy * dy * inv2s2) : 0.0;
-    }
+    weights(v, j0, nj, sy, wy);
     for (int sx = 0; sx < sub; ++sx) {
-      const double x = u - 0.5 + (sx + 0.5) / sub;
-      double wx[kMaxNodes];
-      for (int a = 0; a < ni; ++a) {
-        const double dx = (i0 + a) * spacing - x;
-        wx[a] = std::abs(dx) <= reach ? std::exp(-dx * dx * inv2s2) : 0.0;
-      }
+      const double* wx = wxs[sx];
       double sum_re = 0, sum_im = 0, sum_w2 = 0;
       for (int b = 0; b < nj; ++b) {
         if (wy[b] == 0.0) continue;

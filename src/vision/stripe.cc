@@ -435,8 +435,8 @@ INSITU_INLINE void TileBody(const Plane<T>& p, int u0, int n, int rlo, int rhi, 
 // above the row before it and not below the row after (the first row of a flat top), and
 // min_contrast above the darker of the rows reach away. The thresholds are integers (the
 // ceilings of the options'), so the test is the scalar one exactly. count[c]: the column's
-// flags (up to 255). Measured: the scalar test
-// over the band took a quarter of a default frame's extraction.
+// flags (up to 255). Measured: the scalar test over the band took a quarter of a default
+// frame's extraction.
 template <typename T>
 INSITU_INLINE void PeakFlagsBody(const T* __restrict tile, int n, int rows, int reach, T min_peak,
                                  T min_contrast, uint8_t* __restrict flag,
@@ -663,6 +663,14 @@ class ColumnExtractor {
     ridge_blocks_ = std::max(1, (kRidgeRows + block_rows_ - 1) / block_rows_);
     reach_ = std::clamp(o_.max_width_px / 4, 4, 16);
     ridge_floor_ = std::max(1, static_cast<int>(std::ceil(o_.min_contrast)));
+    // PeakFlags' integer thresholds; none when they exceed every sample value.
+    const double top = std::numeric_limits<T>::max();
+    const double min_peak = std::ceil(o_.min_peak), min_contrast = std::ceil(o_.min_contrast);
+    flags_possible_ = min_peak <= top && min_contrast <= top;
+    if (flags_possible_) {
+      flag_min_peak_ = static_cast<T>(std::max(min_peak, 0.0));
+      flag_min_contrast_ = static_cast<T>(std::max(min_contrast, 0.0));
+    }
   }
 
   void Run() {
@@ -783,9 +791,8 @@ class ColumnExtractor {
   };
 
   // The exact 3x3 median outside the tile, each row computed once per column (Decide's stamp),
-  // kOutsideRows
-  // aligned rows at a time: the looks outside the band sweep along the column, and a run of
-  // rows shares each row's sorted triple (one sort per row instead of three per value).
+  // kOutsideRows aligned rows at a time: the looks outside the band sweep along the column, and
+  // a run of rows shares each row's sorted triple (one sort per row instead of three per value).
   [[gnu::noinline]] T Outside(int u, int r, uint32_t stamp) const {
     const int r0 = r - r % kOutsideRows;
     const int r1 = std::min(r0 + kOutsideRows, p_.height) - 1;
@@ -1120,12 +1127,9 @@ class ColumnExtractor {
     }
     Tile(p_, u0, n, tlo, thi, w_, median_);
     const int rows = thi - tlo + 1;
-    const double top = std::numeric_limits<T>::max();
-    const double min_peak = std::ceil(o_.min_peak), min_contrast = std::ceil(o_.min_contrast);
-    if (min_peak <= top && min_contrast <= top) {
-      PeakFlags(w_.tile.data(), n, rows, reach_, static_cast<T>(std::max(min_peak, 0.0)),
-                static_cast<T>(std::max(min_contrast, 0.0)), w_.peak_flag.data(),
-                w_.peak_count.data());
+    if (flags_possible_) {
+      PeakFlags(w_.tile.data(), n, rows, reach_, flag_min_peak_, flag_min_contrast_,
+                w_.peak_flag.data(), w_.peak_count.data());
     } else {  // nothing clears them
       std::fill_n(w_.peak_flag.begin(), static_cast<size_t>(rows) * n, 0);
       std::fill_n(w_.peak_count.begin(), n, 0);
@@ -1481,6 +1485,8 @@ class ColumnExtractor {
   int ridge_blocks_ = 2;
   int reach_ = 10;
   int ridge_floor_ = 1;
+  bool flags_possible_ = true;
+  T flag_min_peak_ = 0, flag_min_contrast_ = 0;
   const StripeWindow* window_;
 };
 
