@@ -490,14 +490,8 @@ std::pair<int, int> StripeBand(const ScanOptions& o, const vision::StripeOptions
   return {first, last - first};
 }
 
-// The pointer sweeps its line back and forth: every point of it is passed twice a period,
-// 2 length / speed, so an exposure of whole periods gives the whole line the same dose wherever
-// the sweep was when the exposure began. Any other exposure leaves a stretch of the line swept
-// once more than the rest: a step in the stripe's brightness that falls anywhere along it,
-// and moves the fade where a line leaves a surface (a gauge's end) by a fraction of a pixel.
-// Returns the speed nearest `speed` at which `exposure_ms` holds a whole number of periods (at
-// least one), or `speed` itself when that would be more than 4 times faster (an exposure far
-// shorter than a sweep: the dose cannot be even).
+}  // namespace
+
 double EvenSweepSpeed(double speed, double length_mm, double exposure_ms) {
   if (!(length_mm > 0) || !(exposure_ms > 0) || !(speed > 0)) return speed;
   const double period_ms = 2e3 * length_mm / speed;
@@ -505,6 +499,8 @@ double EvenSweepSpeed(double speed, double length_mm, double exposure_ms) {
   const double even = 2e3 * length_mm * periods / exposure_ms;
   return even <= 4.0 * speed ? even : speed;
 }
+
+namespace {
 
 double LineLength(const ScanOptions& o) { return std::abs(o.y_end_mm - o.y_start_mm); }
 
@@ -523,15 +519,8 @@ struct PointerOff {
 constexpr double kExposureTarget = 0.55;
 constexpr double kExposurePercentile = 0.98;
 
-// Auto exposure: pre-shots on the first, middle and last lines (software trigger), each
-// rescaling the exposure by target / level until within 15 % of it (the sensor is linear:
-// stripe and room light both scale with the exposure). A percentile that saturates tells no
-// level, nor does a frame without a stripe: the exposure is cut by 3 or raised by 4, or,
-// once both are known, set between them (geometric mean). It never goes above 8 times the
-// job's exposure: no stripe there is no stripe (a missing part, the pointer off), and the
-// job's exposure is kept. Not converging in 8 rounds keeps the last exposure whose level was
-// measured. *note says what went wrong, empty when it converged. Returns the exposure (ms)
-// it set, and counts its frames in *shots. Errors: the devices', cancelled.
+}  // namespace
+
 Result<double> AutoExpose(hw::Machine& machine, const ScanOptions& options,
                           const vision::StripeOptions& stripe_options,
                           const calib::CalibrationSet& calibration,
@@ -552,6 +541,14 @@ Result<double> AutoExpose(hw::Machine& machine, const ScanOptions& options,
   double too_bright = std::numeric_limits<double>::infinity();  // the least that saturated
   double measured = -1.0;  // the exposure the last measured level asked for
   bool converged = false;
+  // The last round whose level saturated: its exposure, valid columns' peaks and saturated
+  // columns; and the saturated columns excused as glints (0 until a cut shows them).
+  struct {
+    double exposure_ms = 0.0;
+    std::vector<double> peaks;
+    int64_t glinting = 0;
+  } last_saturated;
+  int64_t glints = 0;
   for (int round = 0; round < 8; ++round) {
     if (cancel && cancel->load()) return Status(StatusCode::kCancelled, "scan cancelled");
     INSITU_RETURN_IF_ERROR(machine.camera->SetExposure(exposure_ms * 1e3).Prefixed("auto exposure"));
@@ -583,8 +580,29 @@ Result<double> AutoExpose(hw::Machine& machine, const ScanOptions& options,
       }
     }
     (void)machine.scanner->StopPointer();
-    // Saturated columns are the brightest: they count at full scale.
-    peaks.insert(peaks.end(), static_cast<size_t>(saturated), static_cast<double>(max_value));
+    const auto valid = static_cast<int64_t>(peaks.size());
+    // Glints: a specular part mirrors the pointer into the camera tens of times brighter than
+    // its diffuse stripe. When a cut of the exposure by 2 or more left most saturated columns
+    // saturated (each then above twice full scale: over 3.6 times the target) and lost a tenth
+    // or more of the valid ones to the dark, no exposure measures both (the camera's range is
+    // full scale over min_peak, ~12): the columns still saturated are excused as glints, and
+    // the level is the rest's, from the round before the cut (its valid columns still seen;
+    // the columns saturated there but not after the cut count at full scale).
+    const auto before = static_cast<int64_t>(last_saturated.peaks.size());
+    if (glints == 0 && last_saturated.exposure_ms >= 2.0 * exposure_ms &&
+        last_saturated.glinting >= 10 && before >= 10 && 2 * saturated >= last_saturated.glinting &&
+        10 * valid < 9 * before) {
+      glints = saturated;
+      too_bright = std::numeric_limits<double>::infinity();
+      too_dark = 0.0;
+      exposure_ms = last_saturated.exposure_ms;
+      peaks = std::move(last_saturated.peaks);
+      saturated = last_saturated.glinting;
+    }
+    const std::vector<double> valid_peaks = peaks;
+    // Saturated columns are the brightest: they count at full scale (but for the glints).
+    peaks.insert(peaks.end(), static_cast<size_t>(std::max<int64_t>(0, saturated - glints)),
+                 static_cast<double>(max_value));
     double next = exposure_ms;
     const auto between = [&] { return std::sqrt(too_dark * too_bright); };
     if (peaks.size() < 10) {  // no stripe to speak of
@@ -596,6 +614,7 @@ Result<double> AutoExpose(hw::Machine& machine, const ScanOptions& options,
       if (peaks[k] >= max_value) {  // the percentile itself saturates: its level is unknown
         too_bright = std::min(too_bright, exposure_ms);
         next = too_dark > 0 ? between() : exposure_ms / 3.0;
+        last_saturated = {exposure_ms, valid_peaks, saturated};
       } else {
         const double factor = kExposureTarget * max_value / std::max(peaks[k], 1.0);
         next = std::clamp(exposure_ms * factor, kMinMs, kMaxMs);
@@ -626,9 +645,17 @@ Result<double> AutoExpose(hw::Machine& machine, const ScanOptions& options,
       exposure_ms = options.exposure_ms;
     }
   }
+  if (glints > 0) {
+    *note += std::string(note->empty() ? "" : "; ") +
+             "auto exposure set for the stripe's diffuse light: " + std::to_string(glints) +
+             " columns of the pre-shots stayed saturated at half the exposure or less (glints of "
+             "a specular surface), and their centres are lost at any exposure that shows the rest";
+  }
   INSITU_RETURN_IF_ERROR(machine.camera->SetExposure(exposure_ms * 1e3).Prefixed("auto exposure"));
   return exposure_ms;
 }
+
+namespace {
 
 // The room's light as the scan's frames will see it (the exposure, gain and region already
 // set), handed to `processor`.

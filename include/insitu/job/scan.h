@@ -114,6 +114,33 @@ vision::StripeWindow LineStripeWindow(const ScanOptions& o, const calib::Calibra
                                       vision::StripeDirection direction, int i, int width,
                                       int height, int offset_x, int offset_y);
 
+// The pointer sweeps its line back and forth: every point of it is passed twice a period,
+// 2 length / speed, so an exposure of whole periods gives the whole line the same dose wherever
+// the sweep was when the exposure began. Any other exposure leaves a stretch of the line swept
+// once more than the rest: a step in the stripe's brightness that falls anywhere along it,
+// and moves the fade where a line leaves a surface (a gauge's end) by a fraction of a pixel.
+// Returns the speed nearest `speed` at which `exposure_ms` holds a whole number of periods (at
+// least one), or `speed` itself when that would be more than 4 times faster (an exposure far
+// shorter than a sweep: the dose cannot be even).
+double EvenSweepSpeed(double speed, double length_mm, double exposure_ms);
+
+// Auto exposure: the stripe's brightest lit columns (98th percentile of the valid peaks) at
+// 55 % of full scale. Pre-shots on the first, middle and last lines (software trigger), each
+// rescaling the exposure by target / level until within 15 % of it (the sensor is linear:
+// stripe and room light both scale with the exposure). A percentile that saturates tells no
+// level, nor does a frame without a stripe: the exposure is cut by 3 or raised by 4, or,
+// once both are known, set between them (geometric mean). Columns still saturated after such
+// a cut, while the rest went dark, are glints (a specular face): excused, and the exposure set
+// for the rest. It never goes above 8 times the job's exposure: no stripe there is no stripe
+// (a missing part, the pointer off), and the job's exposure is kept. Not converging in 8
+// rounds keeps the last exposure whose level was measured. *note says what went wrong (empty
+// when it converged) and names the glints it excused. Returns the exposure (ms) it set, and
+// counts its frames in *shots. Errors: the devices', cancelled.
+Result<double> AutoExpose(hw::Machine& machine, const ScanOptions& options,
+                          const vision::StripeOptions& stripe_options,
+                          const calib::CalibrationSet& calibration, const std::atomic<bool>* cancel,
+                          int* shots, std::string* note);
+
 // The per-frame path of a scan, as the scan runs it and bench/scan_pipeline_bench times it:
 // stripe centres (seed 000 eq. 7), undistorted rays, the line's light plane (eq. 1-4), method
 // 2's height lookup, appended to the cloud. One per thread (it keeps the extractor's buffers).
