@@ -6,14 +6,14 @@
 //   insitu cor export TABLE.csv --lens MM [--format jcz|lmc1] [--reading R] --out FILE.cor
 // Exit codes: 0 done, 1 device or job failure while running (the report says what), 2 bad input
 // (command line, job file, --set, calibration, pattern or data file), 130 interrupted.
-#include <CLI/CLI.hpp>
 #include <poll.h>
 #include <termios.h>
 #include <unistd.h>
 
+#include <CLI/CLI.hpp>
 #include <algorithm>
-#include <cerrno>
 #include <atomic>
+#include <cerrno>
 #include <csignal>
 #include <cstdio>
 #include <cstring>
@@ -27,6 +27,7 @@
 #include "insitu/core/file.h"
 #include "insitu/core/log.h"
 #include "insitu/fit/cor_physics.h"
+#include "insitu/hw/lmc_capture.h"
 #include "insitu/hw/lmc_cor.h"
 #include "insitu/job/cor_reading.h"
 #include "insitu/job/diagnose_job.h"
@@ -173,6 +174,17 @@ int PatternInspect(const std::string& file, const std::string& out_dir,
 // unless `reading_code` forces one; export writes the table as --reading says, else as the
 // CSV's "# reading:" comment (written by import) says, else in the documented convention for
 // the board (swap_xy: which word drives the first mirror).
+// `insitu lmc decode FILE`: a USB capture of an LMC board's traffic, one command a line.
+int LmcDecode(const std::string& path) {
+  auto text = insitu::hw::lmc::DecodeCaptureFile(path);
+  if (!text.ok()) {
+    std::fprintf(stderr, "insitu: %s\n", text.status().message().c_str());
+    return ExitCodeFor(text.status());
+  }
+  std::fputs(text->c_str(), stdout);
+  return 0;
+}
+
 int CorImport(const std::string& cor_path, const std::string& out,
               const std::string& reading_code) {
   namespace lmc = insitu::hw::lmc;
@@ -361,6 +373,15 @@ int main(int argc, char** argv) {
   cor_export->add_flag("--flip-y", export_axes.flip_y, "the board's lmc.flip_y");
   cor_export->add_option("--out", cor_file, ".cor file to write")->required();
 
+  CLI::App* lmc = app.add_subcommand("lmc", "LMC galvo boards' USB traffic");
+  lmc->require_subcommand(1);
+  CLI::App* lmc_decode = lmc->add_subcommand(
+      "decode",
+      "a USB capture of an LMC board's traffic (usbmon text, pcap or pcapng; Linux "
+      "usbmon or Windows USBPcap), one command a line as in galvo_list.txt");
+  std::string capture_path;
+  lmc_decode->add_option("file", capture_path, "the capture")->required();
+
   CLI::App* pattern = app.add_subcommand("pattern", "vector drawings (SVG, DXF, HPGL) to mark");
   pattern->require_subcommand(1);
   CLI::App* inspect = pattern->add_subcommand(
@@ -396,6 +417,7 @@ int main(int argc, char** argv) {
   if (diagnose->parsed()) return Diagnose(csv_path, diag_out, diag_reading);
   if (inspect->parsed()) return PatternInspect(inspect_file, inspect_out, inspect_options);
   if (cor_import->parsed()) return CorImport(cor_in, cor_out, import_reading);
+  if (lmc_decode->parsed()) return LmcDecode(capture_path);
   if (cor_export->parsed()) {
     return CorExport(table_in, lens_mm, cor_format, export_reading, export_axes, cor_file);
   }

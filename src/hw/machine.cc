@@ -99,14 +99,21 @@ Result<std::unique_ptr<Scanner>> OpenLmc(const LmcDeviceConfig& l,
   } else {
     return InvalidArgument("lmc.transport '" + l.transport + "' is not usb or sim_board");
   }
-  lmc::BoardCorrection uploaded;
+  if (!l.capture_file.empty()) {
+    INSITU_ASSIGN_OR_RETURN(transport, lmc::Capturing(std::move(transport), l.capture_file));
+  }
+  lmc::BoardCorrection table;  // none: a blank one, the board corrects nothing
   if (!l.correction_file.empty()) {
     INSITU_ASSIGN_OR_RETURN(const lmc::CorFile cor, lmc::ReadCor(l.correction_file));
-    uploaded = lmc::ToBoard(cor);
-    INSITU_RETURN_IF_ERROR(
-        lmc::UploadCorrection(*transport, uploaded).Prefixed("uploading " + l.correction_file));
+    table = lmc::ToBoard(cor);
   }
-  return lmc::MakeScanner(std::move(transport), l.board, std::move(uploaded));
+  auto opened = lmc::OpenScanner(std::move(transport), l.board, std::move(table));
+  if (!opened.ok()) {
+    return opened.status().Prefixed(l.correction_file.empty()
+                                        ? "starting the board"
+                                        : "starting the board with " + l.correction_file);
+  }
+  return std::move(*opened);
 }
 
 Result<std::unique_ptr<Camera>> OpenAravisCamera(const AravisDeviceConfig& a,
@@ -208,9 +215,8 @@ Result<Machine> CreateMachineOn(const MachineConfig& config,
     m.scanner = std::move(*opened);
     if (config.lmc.correction_file.empty()) {
       m.warnings.push_back(
-          "lmc.correction names no table: none is uploaded, and insitu takes the board to "
-          "apply none (a field.cor made here assumes so); a board that still holds another "
-          "program's table corrects twice");
+          "lmc.correction names no table: the board was given a blank one and corrects "
+          "nothing (a field.cor made here assumes so)");
     } else if (config.lmc.transport == "sim_board" && world &&
                world->options().scan_head.own_correction) {
       m.warnings.push_back(

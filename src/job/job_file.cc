@@ -1,5 +1,6 @@
 #include "insitu/job/job_file.h"
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 
@@ -142,6 +143,27 @@ void ReadWord(ConfigReader& r, const std::string& key, uint16_t* out) {
   *out = static_cast<uint16_t>(v);
 }
 
+// A list of 16-bit words (numbers, as the board takes them), exactly as many as `out`.
+void ReadWords(ConfigReader& r, const std::string& key, const std::vector<uint16_t*>& out) {
+  if (!r.Has(key)) return;
+  std::vector<double> values;
+  r.Read(key, &values);
+  if (!r.ok()) return;
+  if (values.size() != out.size()) {
+    r.Fail(key,
+           "takes " + std::to_string(out.size()) + " words, got " + std::to_string(values.size()));
+    return;
+  }
+  for (size_t i = 0; i < values.size(); ++i) {
+    const double v = values[i];
+    if (!(v >= 0 && v <= 0xFFFF && v == std::floor(v))) {
+      r.Fail(key, std::to_string(v) + " is not a 16-bit word (0..65535)");
+      return;
+    }
+    *out[i] = static_cast<uint16_t>(v);
+  }
+}
+
 }  // namespace
 
 void ReadMachine(ConfigReader& root, const std::string& folder, MachineSpec* spec) {
@@ -234,6 +256,29 @@ void ReadMachine(ConfigReader& root, const std::string& folder, MachineSpec* spe
     l.Read("timeout_ms", &d.usb.timeout_ms);
     l.Read("retries", &d.usb.retries);
     hw::lmc::BoardOptions& b = d.board;
+    std::string source = hw::lmc::SourceName(b.source);
+    l.ReadEnum("source", &source, {"fiber", "mopa", "co2", "uv"});
+    b.source = source == "mopa"  ? hw::lmc::Source::kMopa
+               : source == "co2" ? hw::lmc::Source::kCo2
+               : source == "uv"  ? hw::lmc::Source::kUv
+                                 : hw::lmc::Source::kFiber;
+    l.Read("pulse_width_ns", &b.pulse_width_ns);
+    l.Read("power_invert", &b.power_invert);
+    if (l.Has("startup")) {
+      ConfigReader& s = l.Section("startup");
+      hw::lmc::StartupOptions& st = b.startup;
+      ReadWord(s, "control_mode", &st.control_mode);
+      ReadWord(s, "laser_mode", &st.laser_mode);
+      ReadWord(s, "delay_mode", &st.delay_mode);
+      ReadWord(s, "timing_mode", &st.timing_mode);
+      ReadWords(s, "standby", {&st.standby_1, &st.standby_2});
+      ReadWord(s, "first_pulse_killer", &st.first_pulse_killer);
+      ReadWord(s, "pwm_half_period", &st.pwm_half_period);
+      ReadWord(s, "pwm_pulse_width", &st.pwm_pulse_width);
+      ReadWords(s, "fpk2", {&st.fpk2[0], &st.fpk2[1], &st.fpk2[2], &st.fpk2[3]});
+      ReadWords(s, "fly_res", {&st.fly_res[0], &st.fly_res[1], &st.fly_res[2], &st.fly_res[3]});
+      ReadWord(s, "analog_port_1", &st.analog_port_1);
+    }
     l.Read("lens_mm", &b.lens_mm);
     l.Read("swap_xy", &b.swap_xy);
     l.Read("flip_x", &b.flip_x);
@@ -254,6 +299,9 @@ void ReadMachine(ConfigReader& root, const std::string& folder, MachineSpec* spe
     std::string correction;
     l.Read("correction", &correction);
     if (!correction.empty()) d.correction_file = ResolvePath(folder, correction);
+    std::string capture;
+    l.Read("capture", &capture);
+    if (!capture.empty()) d.capture_file = ResolvePath(folder, capture);
     if (l.ok()) l.FailFromValidate(d.usb.Validate());
     if (l.ok()) l.FailFromValidate(b.Validate());
   }

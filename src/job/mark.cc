@@ -637,6 +637,12 @@ Result<SideBefore> Mark(MarkRun& run, const std::vector<pattern::ListCommand>& l
     control.abort = run.options.cancel;
     control.progress = [&](double fraction) { marking.Update(std::round(fraction * list_ms)); };
     const Status ran = machine.scanner->ExecuteList(ToHeadList(list, correction), control);
+    // A controller with its own list format (an LMC board): galvo_list.txt is what it received.
+    if (const std::string received = machine.scanner->ReceivedList(); !received.empty()) {
+      std::ofstream f(run.dir / "galvo_list.txt");
+      f << "# the list as " << machine.scanner->info().model << " received it\n" << received;
+      if (!f.good()) log->warn("cannot write {}", (run.dir / "galvo_list.txt").string());
+    }
     if (!ran.ok()) return PhaseFailure(ran, "marking: ");
   }
   log->info("mark: done");

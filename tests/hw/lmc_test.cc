@@ -12,11 +12,15 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
+#include <map>
 #include <random>
+#include <sstream>
 #include <thread>
 
 #include "hw/lmc/sim_board.h"
 #include "insitu/hw/cell.h"
+#include "insitu/hw/lmc_capture.h"
 #include "insitu/hw/lmc_cor.h"
 #include "insitu/hw/sim_backend.h"
 #include "insitu/sim/world.h"
@@ -263,6 +267,14 @@ BoardOptions SimHeadBoard() {
   return o;
 }
 
+// The scanner on a board opened as the machine opens it (StartUp: serial, version, Reset, a blank
+// correction table, the modes).
+std::unique_ptr<Scanner> Opened(std::unique_ptr<SimBoard> board, const BoardOptions& o) {
+  auto opened = OpenScanner(std::move(board), o);
+  EXPECT_TRUE(opened.ok()) << opened.status().ToString();
+  return opened.ok() ? std::move(*opened) : nullptr;
+}
+
 GalvoList Hatch(double z_mm) {
   GalvoList l;
   l.laser_on_delay_us = 100;
@@ -286,7 +298,8 @@ TEST(Lmc, MarkingThroughTheBoardMatchesTheHeadItself) {
     Machine direct = MakeSimMachine(direct_world);
     auto board = std::make_unique<SimBoard>(board_world, SimHeadBoard());
     const SimBoard* log = board.get();
-    auto lmc = MakeScanner(std::move(board), SimHeadBoard());
+    auto lmc = Opened(std::move(board), SimHeadBoard());
+    ASSERT_NE(lmc, nullptr);
     EXPECT_EQ(lmc->ExecuteList(Hatch(z)).code(), StatusCode::kFailedPrecondition);  // not armed
     ASSERT_TRUE(direct.scanner->Arm().ok());
     ASSERT_TRUE(lmc->Arm().ok());
@@ -298,6 +311,7 @@ TEST(Lmc, MarkingThroughTheBoardMatchesTheHeadItself) {
     EXPECT_EQ(log->log().lists_executed, 1);
     EXPECT_EQ(log->log().end_of_lists, 1);  // the list ran to its end
     EXPECT_EQ(log->log().ports, 0);         // the list's ports off again after it
+    EXPECT_TRUE(log->log().rejected.empty()) << log->log().rejected.front();
 
     const auto& a = direct_world->mark_pulses();
     const auto& b = board_world->mark_pulses();
@@ -342,11 +356,14 @@ TEST(Lmc, LongListsStreamInPackets) {
   o.packets_before_start = 1;
   auto board = std::make_unique<SimBoard>(board_world, o);
   const SimBoard* log = board.get();
-  auto lmc = MakeScanner(std::move(board), o);
+  auto lmc = Opened(std::move(board), o);
+  ASSERT_NE(lmc, nullptr);
   GalvoList l = Hatch(0.0);
   l.entries.clear();
-  for (int k = 0; k < 150; ++k) {  // 150 lines: ~610 commands, 3 packets
-    const double y = -15.0 + 0.2 * k;
+  // 180 lines: a jump, a mark and the mark delay each, after the list's 12 parameters: 552
+  // commands, 3 packets.
+  for (int k = 0; k < 180; ++k) {
+    const double y = -18.0 + 0.2 * k;
     l.entries.push_back({GalvoListEntry::Kind::kJump, {-2.0, y, 0.0}});
     l.entries.push_back({GalvoListEntry::Kind::kMark, {2.0, y, 0.0}});
   }
@@ -368,8 +385,8 @@ TEST(Lmc, LongListsStreamInPackets) {
 // packet's 256 commands go out with exactly one before their padding (a list filling its last
 // packet gets a packet for it), and the emulator, sent them as the scanner sends a list, runs
 // each to that end; without it the board stays busy, waiting for the rest of the list.
-uint16_t StatusWord(Transport& board, uint16_t op) {
-  const auto bytes = SingleCommand(op);
+uint16_t StatusWord(Transport& board, uint16_t op, uint16_t p1 = 0) {
+  const auto bytes = SingleCommand(op, p1);
   EXPECT_TRUE(board.Write(bytes.data(), bytes.size()).ok());
   uint8_t reply[kReplyBytes] = {};
   EXPECT_TRUE(board.Read(reply, sizeof reply).ok());
@@ -419,6 +436,7 @@ TEST(Lmc, EveryListEndsOnceWhateverItsLength) {
         std::all_of(end, decoded.end(), [](const Command& c) { return c[0] == kEndOfList; }));
 
     SimBoard board(std::make_shared<sim::SimWorld>(w), SimHeadBoard());
+    ASSERT_TRUE(StartUp(board, SimHeadBoard(), {}).ok());
     ASSERT_TRUE(SendAndWait(board, packets, 5.0));
     EXPECT_EQ(board.log().lists_executed, 1);
     EXPECT_EQ(board.log().end_of_lists, 1);
@@ -433,6 +451,7 @@ TEST(Lmc, EveryListEndsOnceWhateverItsLength) {
     }
   }
   SimBoard board(std::make_shared<sim::SimWorld>(w), SimHeadBoard());
+  ASSERT_TRUE(StartUp(board, SimHeadBoard(), {}).ok());
   EXPECT_FALSE(SendAndWait(board, {unended}, 0.3));
   EXPECT_GE(board.log().starved, 1);
   EXPECT_EQ(board.log().end_of_lists, 0);
@@ -446,7 +465,8 @@ TEST(Lmc, GotoCarriesItsDistance) {
   w.part.kind = "none";
   auto board = std::make_unique<SimBoard>(std::make_shared<sim::SimWorld>(w), SimHeadBoard());
   const SimBoard* log = board.get();
-  auto lmc = MakeScanner(std::move(board), SimHeadBoard());
+  auto lmc = Opened(std::move(board), SimHeadBoard());
+  ASSERT_NE(lmc, nullptr);
   ASSERT_TRUE(lmc->StartPointerLine({10.0, 0.0, 0.0}, {20.0, 0.0, 0.0}, 100.0).ok());
   ASSERT_TRUE(lmc->StopPointer().ok());
   EXPECT_NEAR(log->log().last_goto_distance, 10.0 * 65536.0 / 163.0, 1.0);  // a unit's floor
@@ -459,7 +479,8 @@ TEST(Lmc, AbortStopsTheBoardAndTheLaser) {
   auto world = std::make_shared<sim::SimWorld>(w);
   auto board = std::make_unique<SimBoard>(world, SimHeadBoard());
   const SimBoard* log = board.get();
-  auto lmc = MakeScanner(std::move(board), SimHeadBoard());
+  auto lmc = Opened(std::move(board), SimHeadBoard());
+  ASSERT_NE(lmc, nullptr);
   GalvoList l = Hatch(0.0);
   l.mark_speed_mm_per_s = 100.0;  // 84 mm of marks: 0.84 s
   ASSERT_TRUE(lmc->Arm().ok());
@@ -487,6 +508,488 @@ TEST(Lmc, AbortStopsTheBoardAndTheLaser) {
   double last = 0.0;
   for (const auto& p : world->mark_pulses()) last = std::max(last, p.t_s);
   EXPECT_LE(last, a.seen_at_s + 1e-12);
+}
+
+// Records every command a transport is sent (for the start-up's order).
+class Recording : public Transport {
+ public:
+  explicit Recording(Transport* inner) : inner_(inner) {}
+  Status Write(const uint8_t* data, size_t size) override {
+    if (size == kCommandBytes) sent.push_back(DecodeCommand(data));
+    return inner_->Write(data, size);
+  }
+  Status Read(uint8_t* data, size_t size) override { return inner_->Read(data, size); }
+  std::string Describe() const override { return inner_->Describe(); }
+  std::vector<Command> sent;
+
+ private:
+  Transport* inner_;
+};
+
+// The board opens as EzCad2 opens it (the start-up open drivers replay from its captures):
+// serial and version read, Reset, the correction table (blank without one), the laser output
+// enabled for the modes, standby, first pulse killer, PWM, the oscillator closed, the FPK and
+// on-the-fly parameters, Z and the analog port; then insitu disables the output until a job
+// arms it. The emulator counts the board started only after all of it.
+TEST(Lmc, TheBoardStartsAsEzCadStartsIt) {
+  sim::WorldOptions w;
+  w.part.kind = "none";
+  SimBoard board(std::make_shared<sim::SimWorld>(w), SimHeadBoard());
+  EXPECT_FALSE(board.log().started);
+  Recording wire(&board);
+  const auto id = StartUp(wire, SimHeadBoard(), {});
+  ASSERT_TRUE(id.ok()) << id.status().ToString();
+  EXPECT_EQ(id->serial, "0x0e2c202611270001");  // the emulator's four serial words
+  EXPECT_EQ(id->version[0], 0x0001);
+  const std::vector<Command> expected = {{kGetSerialNo, 0, 0, 0, 0, 0},
+                                         {kGetVersion, 0, 0, 0, 0, 0},
+                                         {kReset, 0, 0, 0, 0, 0},
+                                         {kWriteCorTable, 0, 0, 0, 0, 0},
+                                         {kEnableLaser, 0, 0, 0, 0, 0},
+                                         {kSetControlMode, 0, 0, 0, 0, 0},
+                                         {kSetLaserMode, 1, 0, 0, 0, 0},
+                                         {kSetDelayMode, 1, 0, 0, 0, 0},
+                                         {kSetTiming, 1, 0, 0, 0, 0},
+                                         {kSetStandby, 2000, 20, 0, 0, 0},
+                                         {kSetFirstPulseKiller, 200, 0, 0, 0, 0},
+                                         {kSetPwmHalfPeriod, 125, 0, 0, 0, 0},
+                                         {kSetPwmPulseWidth, 125, 0, 0, 0, 0},
+                                         {kFiberSetMo, 0, 0, 0, 0, 0},
+                                         {kSetFpkParam2, 0xFFB, 1, 409, 100, 0},
+                                         {kSetFlyRes, 0, 99, 1000, 25, 0},
+                                         {kEnableZ, 0, 0, 0, 0, 0},
+                                         {kWriteAnalogPort1, 0x7FF, 0, 0, 0, 0},
+                                         {kEnableZ, 0, 0, 0, 0, 0},
+                                         {kDisableLaser, 0, 0, 0, 0, 0}};
+  EXPECT_EQ(FormatCommands(wire.sent), FormatCommands(expected));
+  const SimBoardLog log = board.log();
+  EXPECT_TRUE(log.started);
+  EXPECT_TRUE(log.correction_blank);
+  EXPECT_FALSE(log.laser_enabled);  // off until a job arms it
+  EXPECT_TRUE(log.rejected.empty());
+
+  // The job's values go out instead of EzCad's; a table goes up whole.
+  BoardOptions o = SimHeadBoard();
+  o.startup.standby_1 = 1000;
+  o.startup.fpk2 = {0x0FFB, 1, 300, 50};
+  BoardCorrection table;
+  table.offsets.assign(65 * 65, {3, -4});
+  SimBoard second(std::make_shared<sim::SimWorld>(w), o);
+  Recording wire2(&second);
+  ASSERT_TRUE(StartUp(wire2, o, table).ok());
+  EXPECT_EQ(second.log().correction.size(), 65u * 65u);
+  EXPECT_FALSE(second.log().correction_blank);
+  const auto find = [&](uint16_t op) {
+    return *std::find_if(wire2.sent.begin(), wire2.sent.end(),
+                         [&](const Command& c) { return c[0] == op; });
+  };
+  EXPECT_EQ(find(kSetStandby)[1], 1000);
+  EXPECT_EQ(find(kSetFpkParam2)[3], 300);
+  EXPECT_EQ(find(kSetFpkParam2)[4], 50);
+  EXPECT_EQ(find(kWriteCorTable)[1], 1);
+}
+
+// A board fresh from power-up that was never started runs no list: the emulator refuses it
+// and says so, as the tests' strict board must.
+TEST(Lmc, ABoardNeverStartedRunsNoList) {
+  sim::WorldOptions w;
+  w.part.kind = "none";
+  auto world = std::make_shared<sim::SimWorld>(w);
+  auto board = std::make_unique<SimBoard>(world, SimHeadBoard());
+  const SimBoard* log = board.get();
+  auto lmc = MakeScanner(std::move(board), SimHeadBoard());  // no StartUp
+  ASSERT_TRUE(lmc->Arm().ok());
+  (void)lmc->ExecuteList(Hatch(0.0));
+  EXPECT_TRUE(world->mark_pulses().empty());
+  ASSERT_FALSE(log->log().rejected.empty());
+  EXPECT_NE(log->log().rejected.front().find("start-up"), std::string::npos)
+      << log->log().rejected.front();
+  EXPECT_EQ(log->log().lists_executed, 0);
+}
+
+// The list words of each source type (docs/hardware.md, "LMC"): a fibre source's Q-switch
+// period (50 ns units) and current; a MOPA's pulse width before them; a CO2 or UV source's
+// pulse period (100 ns units), first pulse killer and power ratio (200 x % / kHz), a UV's
+// power inverted where its driver takes it so. Settings that mean nothing to a source are
+// refused by name.
+TEST(Lmc, EachSourceSendsItsOwnLaserWords) {
+  const auto words = [](const BoardOptions& o, double power) {
+    GalvoList l = ReferenceSquare();  // 20 kHz
+    l.laser_power = power;
+    std::array<uint16_t, 2> at{0x8000, 0x8000};
+    uint16_t z = 0x8000;
+    auto commands = EncodeList(l, o, &at, &z);
+    EXPECT_TRUE(commands.ok()) << commands.status().ToString();
+    std::map<uint16_t, Command> by_op;
+    for (const Command& c : commands.ok() ? *commands : std::vector<Command>{}) by_op[c[0]] = c;
+    return by_op;
+  };
+  BoardOptions fiber;
+  auto f = words(fiber, 1.0);
+  EXPECT_EQ(f[kQSwitchPeriod][1], 1000);  // 20000 / 20 kHz
+  EXPECT_EQ(f[kMarkCurrent][1], 0xFFF);
+  for (uint16_t op : {kMarkFreq, kMarkPowerRatio, kSetCo2Fpk, kFiberPulseWidth}) {
+    EXPECT_EQ(f.count(op), 0u) << std::hex << op;
+  }
+  BoardOptions mopa;
+  mopa.source = Source::kMopa;
+  mopa.pulse_width_ns = 200;
+  auto m = words(mopa, 0.5);
+  EXPECT_EQ(m[kFiberPulseWidth][1], 200);
+  EXPECT_EQ(m[kMarkCurrent][1], 2048);  // round(0.5 x 4095)
+  BoardOptions co2;
+  co2.source = Source::kCo2;
+  auto c = words(co2, 1.0);
+  EXPECT_EQ(c[kMarkFreq][1], 500);   // 10000 / 20 kHz
+  EXPECT_EQ(c[kSetCo2Fpk][1], 100);  // 2000 / 20 kHz, twice
+  EXPECT_EQ(c[kSetCo2Fpk][2], 100);
+  EXPECT_EQ(c[kMarkPowerRatio][1], 1000);  // 200 x 100 % / 20 kHz
+  EXPECT_EQ(c.count(kMarkCurrent) + c.count(kQSwitchPeriod), 0u);
+  BoardOptions uv;
+  uv.source = Source::kUv;
+  uv.power_invert = true;
+  EXPECT_EQ(words(uv, 0.3)[kMarkPowerRatio][1], 700);  // 200 x (100 - 30) % / 20 kHz
+
+  const auto refused = [](const std::function<void(BoardOptions&)>& set, const char* field) {
+    BoardOptions o;
+    set(o);
+    const Status st = o.Validate();
+    EXPECT_EQ(st.code(), StatusCode::kInvalidArgument) << field;
+    EXPECT_NE(st.message().find(field), std::string::npos) << st.message();
+  };
+  refused([](BoardOptions& o) { o.pulse_width_ns = 100; }, "pulse_width_ns");    // a fibre source
+  refused([](BoardOptions& o) { o.source = Source::kMopa; }, "pulse_width_ns");  // none given
+  refused([](BoardOptions& o) { o.source = Source::kCo2, o.power_invert = true; }, "power_invert");
+  GalvoList fast = ReferenceSquare();
+  fast.laser_frequency_khz = 15000.0;  // a fibre's Q-switch word holds it, a CO2's period not
+  std::array<uint16_t, 2> at{0x8000, 0x8000};
+  uint16_t z = 0;
+  EXPECT_TRUE(EncodeList(fast, fiber, &at, &z).ok());
+  EXPECT_EQ(EncodeList(fast, co2, &at, &z).status().code(), StatusCode::kInvalidArgument);
+}
+
+// The emulator reads each source's words back: the same hatch through a CO2 board and a fibre
+// board marks the same pulses (rate and power agree to a word's rounding).
+TEST(Lmc, TheEmulatorMarksWhatEachSourceWasSent) {
+  std::vector<size_t> counts;
+  std::vector<double> diameters;
+  const std::vector<Source> sources = {Source::kFiber, Source::kCo2, Source::kUv};
+  for (Source source : sources) {
+    sim::WorldOptions w;
+    w.part.kind = "none";
+    auto world = std::make_shared<sim::SimWorld>(w);
+    BoardOptions o = SimHeadBoard();
+    o.source = source;
+    auto lmc = Opened(std::make_unique<SimBoard>(world, o), o);
+    ASSERT_NE(lmc, nullptr);
+    ASSERT_TRUE(lmc->Arm().ok());
+    GalvoList l = Hatch(0.0);
+    l.laser_frequency_khz = 20.0;
+    l.laser_power = 0.6;
+    ASSERT_TRUE(lmc->ExecuteList(l).ok());
+    counts.push_back(world->mark_pulses().size());
+    double sum = 0;
+    for (const auto& p : world->mark_pulses()) sum += p.diameter_mm;
+    diameters.push_back(sum / std::max<size_t>(1, world->mark_pulses().size()));
+  }
+  ASSERT_GT(counts[0], 1000u);
+  for (size_t i = 1; i < counts.size(); ++i) {
+    EXPECT_EQ(counts[i], counts[0]) << SourceName(sources[i]);
+    // The power ratio word is whole: 200 x 60 / 20 = 600 exactly; the current 0.6 x 4095 =
+    // 2457 of 4095: 0.0001 apart, far under a crater's change.
+    EXPECT_NEAR(diameters[i], diameters[0], 1e-4 * diameters[0]);
+  }
+}
+
+// A parameter applies where it stands in the list: a hatch whose second half follows a higher
+// current marks wider craters there, and the first half keeps its own.
+TEST(Lmc, ParametersApplyWhereTheyStandInTheList) {
+  sim::WorldOptions w;
+  w.part.kind = "none";
+  auto world = std::make_shared<sim::SimWorld>(w);
+  const BoardOptions o = SimHeadBoard();
+  SimBoard board(world, o);
+  ASSERT_TRUE(StartUp(board, o, {}).ok());
+  StatusWord(board, kEnableLaser);
+  StatusWord(board, kFiberSetMo, 1);
+  const auto at = [&](double x, double y) { return *ToUnits(x, y, o); };
+  std::vector<Command> list = {{kJumpSpeed, 400, 0, 0, 0, 0},
+                               {kMarkSpeed, 400, 0, 0, 0, 0},
+                               {kQSwitchPeriod, 1000, 0, 0, 0, 0},
+                               {kMarkCurrent, 0x600, 0, 0, 0, 0}};
+  for (int half = 0; half < 2; ++half) {
+    if (half == 1) list.push_back({kMarkCurrent, 0xFFF, 0, 0, 0, 0});
+    for (int k = 0; k < 5; ++k) {
+      const double y = (half == 0 ? -2.0 : 1.0) + 0.2 * k;
+      const auto a = at(-2.0, y), b = at(2.0, y);
+      list.push_back({kJumpTo, a[0], a[1], 0, 0, 0});
+      list.push_back({kMarkTo, b[0], b[1], 0, 0, 0});
+    }
+  }
+  ASSERT_TRUE(SendAndWait(board, Packets(list), 5.0));
+  double low = 0, high = 0;
+  int n_low = 0, n_high = 0;
+  for (const auto& p : world->mark_pulses()) {
+    (p.point_in_world.y() < 0 ? low : high) += p.diameter_mm;
+    ++(p.point_in_world.y() < 0 ? n_low : n_high);
+  }
+  ASSERT_GT(n_low, 100);
+  ASSERT_GT(n_high, 100);
+  EXPECT_LT(low / n_low, 0.95 * (high / n_high));  // the fluence's log: wider at full current
+  EXPECT_TRUE(board.log().rejected.empty());
+}
+
+// A board that scripts its status: busy with the list (not ready for the next packet) for
+// `busy_s` after ExecuteList, then ready, then idle `busy_s` after the last packet.
+class BusyBoard : public Transport {
+ public:
+  explicit BusyBoard(double busy_s) : busy_s_(busy_s) {}
+  Status Write(const uint8_t* data, size_t size) override {
+    if (size == kPacketBytes) {
+      ++packets_;
+      last_packet_ = Now();
+      return Status::Ok();
+    }
+    const Command c = DecodeCommand(data);
+    if (c[0] == kExecuteList) executed_ = Now();
+    uint16_t status = kStatusReady;
+    if (executed_ >= 0) {
+      const bool first_wait = packets_ == 1 && Now() - executed_ < busy_s_;
+      const bool running = Now() - std::max(executed_, last_packet_) < busy_s_;
+      status = static_cast<uint16_t>((running ? kStatusBusy : 0) | (first_wait ? 0 : kStatusReady));
+    }
+    if (c[0] == kGetSerialNo || c[0] == kWriteCorLine) status = 0;
+    replies_.push_back(status);
+    return Status::Ok();
+  }
+  Status Read(uint8_t* data, size_t size) override {
+    std::fill(data, data + size, 0);
+    data[6] = static_cast<uint8_t>(replies_.front() & 0xFF);
+    data[7] = static_cast<uint8_t>(replies_.front() >> 8);
+    replies_.erase(replies_.begin());
+    return Status::Ok();
+  }
+  std::string Describe() const override { return "scripted board"; }
+
+ private:
+  double Now() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count();
+  }
+  double busy_s_;
+  const std::chrono::steady_clock::time_point t0_ = std::chrono::steady_clock::now();
+  int packets_ = 0;
+  double executed_ = -1.0, last_packet_ = -1.0;
+  std::vector<uint16_t> replies_;
+};
+
+// The next packet waits for as long as the board is busy with the list before it (the old
+// fixed limit took a legitimately long list for a dead board), reporting progress, and a
+// cancel during that wait stops the board within a poll.
+TEST(Lmc, APacketWaitsAsLongAsTheBoardIsBusy) {
+  BoardOptions o = SimHeadBoard();
+  o.packets_before_start = 1;
+  GalvoList l;
+  for (int k = 0; k < 200; ++k) {  // ~420 commands: two packets
+    l.entries.push_back({GalvoListEntry::Kind::kJump, {-2.0, -2.0 + 0.02 * k, 0.0}});
+    l.entries.push_back({GalvoListEntry::Kind::kJump, {2.0, -2.0 + 0.02 * k, 0.0}});
+  }
+  {
+    auto lmc = MakeScanner(std::make_unique<BusyBoard>(1.2), o);
+    std::vector<double> progress;
+    ListControl control;
+    control.progress = [&](double f) { progress.push_back(f); };
+    const auto t0 = std::chrono::steady_clock::now();
+    const Status ran = lmc->ExecuteList(l, control);
+    const double took =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    EXPECT_TRUE(ran.ok()) << ran.ToString();
+    EXPECT_GT(took, 2.0);  // 1.2 s for the second packet, 1.2 s for the list to end
+    EXPECT_GT(progress.size(), 10u);
+    EXPECT_TRUE(std::is_sorted(progress.begin(), progress.end()));
+  }
+  {
+    auto lmc = MakeScanner(std::make_unique<BusyBoard>(5.0), o);
+    std::atomic<bool> abort{false};
+    ListControl control;
+    control.abort = &abort;
+    std::thread stopper([&] {
+      std::this_thread::sleep_for(std::chrono::milliseconds(300));
+      abort = true;
+    });
+    const auto t0 = std::chrono::steady_clock::now();
+    const Status ran = lmc->ExecuteList(l, control);
+    const double took =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    stopper.join();
+    EXPECT_EQ(ran.code(), StatusCode::kCancelled) << ran.ToString();
+    // Seen at the next poll (1 ms); the stop's flush then waits its half second for the
+    // scripted board, still "busy".
+    EXPECT_LT(took, 0.3 + 0.5 + 0.2);
+  }
+  {
+    o.list_timeout_s = 0.5;  // a bound, when the job sets one
+    auto lmc = MakeScanner(std::make_unique<BusyBoard>(5.0), o);
+    const Status ran = lmc->ExecuteList(l);
+    EXPECT_EQ(ran.code(), StatusCode::kDeviceError);
+    EXPECT_NE(ran.message().find("list_timeout_s"), std::string::npos) << ran.ToString();
+  }
+}
+
+// The lists of a decoded capture: the lines that are not comments, split at each "# list" head.
+std::vector<std::string> DecodedLists(const std::string& decoded) {
+  std::vector<std::string> lists;
+  std::istringstream in(decoded);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind("# list ", 0) == 0) {
+      lists.emplace_back();
+    } else if (!line.empty() && line[0] != '#' && !lists.empty()) {
+      lists.back() += line + "\n";
+    }
+  }
+  return lists;
+}
+
+int EndsOfList(const std::string& list) {
+  int n = 0;
+  for (size_t at = list.find("listEndOfList"); at != std::string::npos;
+       at = list.find("listEndOfList", at + 1)) {
+    ++n;
+  }
+  return n;
+}
+
+// insitu's own traffic, captured as pcapng and as usbmon text, decodes to the lists it sent:
+// each with one end-of-list, the marking list exactly as the scanner says the board received
+// it (what a mark job writes to galvo_list.txt), whatever its length around a packet's 256
+// commands.
+TEST(Lmc, ACaptureOfInsitusTrafficDecodesAsTheListsItSent) {
+  const auto dir = std::filesystem::temp_directory_path() / "insitu_lmc_capture";
+  std::filesystem::create_directories(dir);
+  for (const char* name : {"traffic.pcapng", "traffic.txt"}) {
+    // A marking list (the hatch: 76 commands) and lists of jumps of 255, 256, 257 and 512
+    // commands (the list's 11 parameters and its jumps), then the list's end-of-list.
+    for (int n : {0, 255, 256, 257, 512}) {
+      SCOPED_TRACE(std::string(name) + (n ? ", " + std::to_string(n) + " commands" : ", hatch"));
+      const std::string path = (dir / name).string();
+      sim::WorldOptions w;
+      w.part.kind = "none";
+      std::string received;
+      {
+        auto board = Capturing(
+            std::make_unique<SimBoard>(std::make_shared<sim::SimWorld>(w), SimHeadBoard()), path);
+        ASSERT_TRUE(board.ok()) << board.status().ToString();
+        auto lmc = OpenScanner(std::move(*board), SimHeadBoard());
+        ASSERT_TRUE(lmc.ok()) << lmc.status().ToString();
+        GalvoList l = Hatch(0.0);
+        if (n > 0) {
+          l = GalvoList{};
+          for (int k = 0; k < n - 11; ++k) {
+            l.entries.push_back({GalvoListEntry::Kind::kJump, {k % 2 ? 1.0 : -1.0, 0.0, 0.0}});
+          }
+        }
+        ASSERT_TRUE((*lmc)->Arm().ok());
+        ASSERT_TRUE((*lmc)->ExecuteList(l).ok());
+        received = (*lmc)->ReceivedList();
+        if (n > 0) {
+          EXPECT_EQ(std::count(received.begin(), received.end(), '\n'), n + 1);  // and its end
+        }
+      }  // closed: the capture holds the stop at the end too
+      const auto decoded = DecodeCaptureFile(path);
+      ASSERT_TRUE(decoded.ok()) << decoded.status().ToString();
+      const auto lists = DecodedLists(*decoded);
+      ASSERT_GE(lists.size(), 2u);  // the marking list, the stop's flush
+      for (const std::string& list : lists) EXPECT_EQ(EndsOfList(list), 1) << list;
+      EXPECT_EQ(lists[lists.size() - 2], received);
+      EXPECT_NE(decoded->find("# Reset "), std::string::npos);
+      EXPECT_NE(decoded->find("# WriteCorTable"), std::string::npos);
+    }
+  }
+}
+
+// Captures made elsewhere: Windows USBPcap in classic pcap (EzCad's side), usbmon text as the
+// kernel writes it (32 bytes of each transfer: a list packet is cut, and the decode says so),
+// and a file that is none of them.
+TEST(Lmc, CapturesFromOtherToolsDecodeOrSayWhyNot) {
+  const auto le16 = [](std::string* s, uint16_t v) {
+    s->push_back(static_cast<char>(v & 0xFF));
+    s->push_back(static_cast<char>(v >> 8));
+  };
+  const auto le32 = [&](std::string* s, uint32_t v) {
+    le16(s, static_cast<uint16_t>(v));
+    le16(s, static_cast<uint16_t>(v >> 16));
+  };
+  std::vector<Command> list = {{kReadyMark, 0, 0, 0, 0, 0}, {kJumpTo, 0x8000, 0x8000, 0, 0, 0}};
+  const auto packet = Packets(list).front();
+  const auto reset = SingleCommand(kResetList), execute = SingleCommand(kExecuteList);
+  // USBPcap: 27-byte header (length, IRP id, status, function, info, bus, device, endpoint,
+  // transfer, data length), then the data; info bit 0 set on the completion, which carries none.
+  const auto usbpcap = [&](const std::vector<uint8_t>& data, bool completion) {
+    std::string p;
+    le16(&p, 27);
+    for (int i = 0; i < 8; ++i) p.push_back(0);
+    le32(&p, 0);
+    le16(&p, 0x0009);  // URB_FUNCTION_BULK_OR_INTERRUPT_TRANSFER
+    p.push_back(completion ? 1 : 0);
+    le16(&p, 1);
+    le16(&p, 3);
+    p.push_back(0x02);
+    p.push_back(3);
+    le32(&p, static_cast<uint32_t>(data.size()));
+    if (!completion) p.append(data.begin(), data.end());
+    return p;
+  };
+  std::string pcap;
+  le32(&pcap, 0xa1b2c3d4);
+  le16(&pcap, 2);
+  le16(&pcap, 4);
+  le32(&pcap, 0);
+  le32(&pcap, 0);
+  le32(&pcap, 65535);
+  le32(&pcap, 249);
+  for (const auto& [data, completion] : std::vector<std::pair<std::vector<uint8_t>, bool>>{
+           {reset, false}, {reset, true}, {packet, false}, {packet, true}, {execute, false}}) {
+    const std::string rec = usbpcap(data, completion);
+    le32(&pcap, 0);
+    le32(&pcap, 0);
+    le32(&pcap, static_cast<uint32_t>(rec.size()));
+    le32(&pcap, static_cast<uint32_t>(rec.size()));
+    pcap += rec;
+  }
+  const auto transfers = ReadCapture(pcap, "ezcad.pcap");
+  ASSERT_TRUE(transfers.ok()) << transfers.status().ToString();
+  ASSERT_EQ(transfers->size(), 3u);  // the completions carry no OUT data
+  const std::string decoded = DecodeTraffic(*transfers);
+  const auto lists = DecodedLists(decoded);
+  ASSERT_EQ(lists.size(), 1u);
+  EXPECT_EQ(lists[0], FormatCommands({list[0], list[1], {kEndOfList, 0, 0, 0, 0, 0}}));
+  EXPECT_NE(decoded.find("# ResetList"), std::string::npos);
+  EXPECT_NE(decoded.find("# ExecuteList"), std::string::npos);
+
+  // The kernel's usbmon text: a command whole, a list packet cut at 32 bytes.
+  const std::string text =
+      "ffff8b2a 1000 S Bo:1:005:2 -115 12 = 12000000 00000000 00000000\n"
+      "ffff8b2a 1010 C Bo:1:005:2 0 12 >\n"
+      "ffff8b2b 1020 S Bo:1:005:2 -115 3072 = 51800000 00000000 00000000 01800080 00800000 "
+      "00000000 02800000 00000000\n";
+  const auto cut = ReadCapture(text, "usbmon.txt");
+  ASSERT_TRUE(cut.ok()) << cut.status().ToString();
+  ASSERT_EQ(cut->size(), 2u);
+  EXPECT_EQ((*cut)[1].length, 3072u);
+  EXPECT_EQ((*cut)[1].data.size(), 32u);
+  const std::string cut_decoded = DecodeTraffic(*cut);
+  EXPECT_NE(cut_decoded.find("cut by the capture"), std::string::npos) << cut_decoded;
+  EXPECT_NE(cut_decoded.find("pcapng"), std::string::npos);
+
+  const auto junk = ReadCapture("hello\nworld\n", "notes.txt");
+  EXPECT_EQ(junk.status().code(), StatusCode::kParseError);
+  EXPECT_NE(junk.status().message().find("notes.txt"), std::string::npos);
+  std::string other_link = pcap.substr(0, 24);
+  other_link[20] = 1;  // Ethernet
+  other_link[21] = 0;
+  EXPECT_EQ(ReadCapture(other_link, "eth.pcap").status().code(), StatusCode::kParseError);
+  EXPECT_EQ(DecodeCaptureFile("/nonexistent/capture.pcapng").status().code(),
+            StatusCode::kNotFound);
 }
 
 TEST(Lmc, NoBoardIsAClearError) {

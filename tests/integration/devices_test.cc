@@ -11,9 +11,11 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
 
 #include "insitu/daemon/server.h"
+#include "insitu/hw/lmc_capture.h"
 #include "integration/job_support.h"
 #include "support/line_client.h"
 
@@ -158,7 +160,9 @@ TEST(Devices, AMissingDeviceStopsTheJobByName) {
 TEST(Lmc, AMarkingJobThroughTheBoardVerifiesAsOnTheHead) {
   const fs::path dir = fs::temp_directory_path() / "insitu_lmc_mark";
   fs::remove_all(dir);
-  auto board = testing::RunShippedJob("mark_plate_lmc.yaml", {}, (dir / "lmc").string());
+  const std::string capture = (dir / "lmc.pcapng").string();
+  auto board = testing::RunShippedJob("mark_plate_lmc.yaml", {"machine.lmc.capture=" + capture},
+                                      (dir / "lmc").string());
   auto head = testing::RunShippedJob("mark_plate_lmc.yaml", {"machine.scanner=sim"},
                                      (dir / "head").string());
   ASSERT_TRUE(board.ok()) << board.status().ToString();
@@ -184,6 +188,39 @@ TEST(Lmc, AMarkingJobThroughTheBoardVerifiesAsOnTheHead) {
       b["placement_error_mm"], b["line_spacing_120_um"], b["line_width_um"],
       b["focus_error_max_mm"], h["placement_error_mm"], h["line_spacing_120_um"],
       h["line_width_um"], h["focus_error_max_mm"]);
+
+  // The job's whole USB traffic, captured: every list the board received ends once, and one of
+  // them is the marking list galvo_list.txt holds.
+  const auto decoded = hw::lmc::DecodeCaptureFile(capture);
+  ASSERT_TRUE(decoded.ok()) << decoded.status().ToString();
+  std::ifstream galvo(dir / "lmc" / "galvo_list.txt");
+  std::string line, marking;
+  while (std::getline(galvo, line)) {
+    if (!line.empty() && line[0] != '#') marking += line + "\n";
+  }
+  ASSERT_FALSE(marking.empty());
+  std::vector<std::string> lists;
+  std::istringstream in(*decoded);
+  while (std::getline(in, line)) {
+    if (line.rfind("# list ", 0) == 0) {
+      lists.emplace_back();
+    } else if (!line.empty() && line[0] != '#' && !lists.empty()) {
+      lists.back() += line + "\n";
+    }
+  }
+  int found = 0;
+  for (const std::string& l : lists) {
+    size_t ends = 0;
+    for (size_t at = l.find("listEndOfList"); at != std::string::npos;
+         at = l.find("listEndOfList", at + 1)) {
+      ++ends;
+    }
+    EXPECT_EQ(ends, 1u);
+    found += l == marking;
+  }
+  EXPECT_EQ(found, 1);
+  std::printf("the job's capture: %zu lists, the marking list of %zu commands among them\n",
+              lists.size(), static_cast<size_t>(std::count(marking.begin(), marking.end(), '\n')));
 }
 
 }  // namespace

@@ -45,6 +45,9 @@ struct LmcDeviceConfig {
   lmc::UsbSelector usb;
   lmc::BoardOptions board;
   std::string correction_file;  // a .cor file uploaded to the board when it opens
+  // A USB capture of everything sent to the board and read back (lmc.capture; empty: none):
+  // pcapng, or usbmon text for a .txt or .mon name (insitu/hw/lmc_capture.h).
+  std::string capture_file;
 };
 
 // How the cell reaches the person at the machine (operator: person): shows `request` and

@@ -4,6 +4,7 @@
 // encoder, the protocol, the USB transport and the board emulator stay in src/hw/lmc.
 #pragma once
 
+#include <array>
 #include <cstdint>
 
 #include "insitu/core/status.h"
@@ -24,7 +25,39 @@ struct UsbSelector {
 
 enum class Focus { kNone, kDaZWord };
 
+// The laser source the board drives: which list commands carry the power and the pulse rate.
+//  * fiber (Q-switched): listQSwitchPeriod (20000 / kHz) and listMarkCurrent (power x 0xFFF);
+//  * mopa: the same and the pulse width (listFiberYLPMPulseWidth, ns);
+//  * co2, uv: listMarkFreq (10000 / kHz), listSetCo2FPK (the first pulse killer, 2000 / kHz,
+//    twice) and listMarkPowerRatio (the duty: 200 x power % / kHz); a uv source may take the
+//    power inverted (power_invert).
+enum class Source { kFiber, kMopa, kCo2, kUv };
+const char* SourceName(Source s);  // "fiber", "mopa", "co2", "uv"
+
+// What the board is told when it opens, after Reset and the correction table (EzCad2's start-up,
+// as captured and replayed by open drivers): the defaults are the values EzCad sends.
+struct StartupOptions {
+  uint16_t control_mode = 0;  // SetControlMode
+  uint16_t laser_mode = 1;    // SetLaserMode
+  uint16_t delay_mode = 1;    // SetDelayMode
+  uint16_t timing_mode = 1;   // SetTiming
+  uint16_t standby_1 = 2000;  // SetStandby: the standby pulses that keep a fibre laser ready
+  uint16_t standby_2 = 20;
+  uint16_t first_pulse_killer = 200;                  // SetFirstPulseKiller
+  uint16_t pwm_half_period = 125;                     // SetPwmHalfPeriod
+  uint16_t pwm_pulse_width = 125;                     // SetPwmPulseWidth
+  std::array<uint16_t, 4> fpk2{0x0FFB, 1, 409, 100};  // SetFpkParam2
+  std::array<uint16_t, 4> fly_res{0, 99, 1000, 25};   // SetFlyRes (marking on the fly)
+  uint16_t analog_port_1 = 0x07FF;                    // WriteAnalogPort1
+};
+
 struct BoardOptions {
+  Source source = Source::kFiber;
+  // A MOPA source's pulse width (ns, 1..65535; its data sheet lists the widths it has); 0 for
+  // any other source (refused there: it means nothing to them).
+  double pulse_width_ns = 0.0;
+  bool power_invert = false;  // a uv source taking 100 - power (only uv)
+  StartupOptions startup;
   double lens_mm = 110.0;  // field size across the 65536 units
   bool swap_xy = false;    // axis order and sign differ between boards and heads
   bool flip_x = false;
@@ -41,7 +74,9 @@ struct BoardOptions {
   double open_mo_delay_us = 8000.0;  // the fibre laser's master oscillator settles
   double polygon_delay_us = 100.0;   // sent in 10 us units
   int poll_ms = 2;                   // status poll period while a list runs
-  double list_timeout_s = 3600.0;
+  // The longest a list may keep the board busy, s; 0 (default): as long as it does (a long
+  // list legitimately runs for hours; progress and cancel work throughout).
+  double list_timeout_s = 0.0;
   int packets_before_start = 3;  // then the rest are streamed as the board reports READY
 
   Status Validate() const;

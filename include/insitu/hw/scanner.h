@@ -125,6 +125,11 @@ class Scanner {
     (void)drive_mm;
     return false;
   }
+  // The last list ExecuteList sent, as the controller received it, one command a line in the
+  // controller's own terms (an LMC board: its list commands up to the end-of-list, as
+  // `insitu lmc decode` prints a capture of them); empty when the controller takes the galvo
+  // list as insitu emits it (the mark job's galvo_list.txt is then that).
+  virtual std::string ReceivedList() const { return {}; }
   // Arming enables the marking laser for ExecuteList; disarm when the job ends or fails.
   virtual Status Arm() = 0;
   virtual Status Disarm() = 0;

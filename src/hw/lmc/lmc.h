@@ -10,12 +10,13 @@
 // units across the lens field, centre 0x8000.
 //
 // The RTC-style GalvoList maps onto list opcodes: the list's parameters first (speeds in units
-// per ms, laser on/off delays and the polygon delay in us, mark current 0..0xFFF from the
-// power fraction, Q-switch period from the pulse rate), then JumpTo/MarkTo with the straight
-// distance from the previous point, a JumpDelay after each jump and a DelayTime (10 us units)
-// after each mark sequence for the list's jump and mark delays. z (focus) goes out as the
-// board's Z DA word (0x8029) before a point whose z changed, when the head has a focus shifter
-// on that output (focus: da_z_word); its scale is the shifter's, from its data sheet.
+// per ms, the source's power and pulse-rate words (Source), laser on/off delays and the
+// polygon delay in us), then JumpTo/MarkTo with the straight distance from the previous point,
+// the JumpDelay before the first jump (a parameter, as on the board: the wait after every jump
+// from there on) and a DelayTime (10 us units) after each mark sequence for the list's mark
+// delay. z (focus) goes out as the board's Z DA word (0x8029) before a point whose z changed,
+// when the head has a focus shifter on that output (focus: da_z_word); its scale is the
+// shifter's, from its data sheet.
 #pragma once
 
 #include <array>
@@ -40,12 +41,16 @@ enum ListOp : uint16_t {
   kJumpSpeed = 0x8006,
   kLaserOnDelay = 0x8007,
   kLaserOffDelay = 0x8008,
+  kMarkFreq = 0x800A,        // co2, uv: the pulse period, 100 ns units
+  kMarkPowerRatio = 0x800B,  // co2, uv: the duty
   kMarkSpeed = 0x800C,
   kJumpDelay = 0x800D,
   kPolygonDelay = 0x800F,
   kWritePortList = 0x8011,
   kMarkCurrent = 0x8012,
   kQSwitchPeriod = 0x801B,
+  kSetCo2Fpk = 0x801E,        // co2, uv: the first pulse killer
+  kFiberPulseWidth = 0x8026,  // mopa: the pulse width, ns
   kSetDaZWord = 0x8029,
   kReadyMark = 0x8051,
 };
@@ -55,15 +60,29 @@ enum SingleOp : uint16_t {
   kDisableLaser = 0x02,
   kEnableLaser = 0x04,
   kExecuteList = 0x05,
+  kSetPwmPulseWidth = 0x06,
   kGetVersion = 0x07,  // the status poll
+  kGetSerialNo = 0x09,
   kGotoXY = 0x0D,
   kWriteCorLine = 0x10,
   kResetList = 0x12,
-  kWriteCorTable = 0x15,
+  kWriteCorTable = 0x15,  // p1: 1 a table follows (4225 lines), 0 a blank one (no correction)
+  kSetControlMode = 0x16,
+  kSetDelayMode = 0x17,
   kSetEndOfList = 0x19,
+  kSetFirstPulseKiller = 0x1A,
+  kSetLaserMode = 0x1B,
+  kSetTiming = 0x1C,
+  kSetStandby = 0x1D,
+  kSetPwmHalfPeriod = 0x1E,
   kStopExecute = 0x1F,
   kWritePort = 0x21,
+  kWriteAnalogPort1 = 0x22,
+  kSetFpkParam2 = 0x2E,
+  kSetFlyRes = 0x32,
   kFiberSetMo = 0x33,  // the fibre laser's master oscillator: 1 open, 0 closed
+  kEnableZ = 0x3A,
+  kReset = 0x40,
 };
 
 constexpr uint16_t kStatusBusy = 0x04;
@@ -88,6 +107,12 @@ class Transport {
   virtual Status Read(uint8_t* data, size_t size) = 0;
   virtual std::string Describe() const = 0;  // "usb 1-4 9588:9899", "simulated board"
 };
+
+// `inner` with everything written to it and read from it recorded in a USB capture at `path`
+// (insitu/hw/lmc_capture.h: pcapng, or usbmon text for a .txt or .mon name), its folder made if
+// missing. Errors: not_found (the file cannot be written).
+Result<std::unique_ptr<Transport>> Capturing(std::unique_ptr<Transport> inner,
+                                             const std::string& path);
 
 // Opens and claims interface 0 of the board. Errors: not_found (no such board: lists what USB
 // devices with that VID:PID exist), device_error (permission: names the udev rule in
@@ -131,6 +156,35 @@ std::vector<uint8_t> GotoXY(const std::array<uint16_t, 2>& from, const std::arra
 // One line per command: "listJumpTo           ba2e 45d1 0000 5248 0000".
 std::string FormatCommands(const std::vector<Command>& commands);
 
+// One single command and the board's whole 8-byte answer as four words (word 3 is the status
+// for most commands; GetSerialNo answers with four words of serial). Errors: device_error.
+Result<std::array<uint16_t, 4>> Query(Transport& transport, uint16_t op, uint16_t p1 = 0,
+                                      uint16_t p2 = 0, uint16_t p3 = 0, uint16_t p4 = 0);
+
+// What the board says of itself when it opens.
+struct BoardIdentity {
+  std::string serial;                 // "0x" and 16 hex digits: GetSerialNo's four words
+  std::array<uint16_t, 4> version{};  // GetVersion's words (the last: its status)
+  std::string Describe() const;       // "serial 0x..., version 0001 0203 0405"
+};
+
+// The start-up commands after the identity queries, in order (StartUp): Reset, the correction
+// table (WriteCorTable 1 and its 4225 lines when `table` has nodes, else WriteCorTable 0: a
+// blank table, the board corrects nothing), EnableLaser, SetControlMode, SetLaserMode,
+// SetDelayMode, SetTiming, SetStandby, SetFirstPulseKiller, SetPwmHalfPeriod,
+// SetPwmPulseWidth, FiberSetMo 0, SetFpkParam2, SetFlyRes, EnableZ, WriteAnalogPort1, EnableZ
+// (EzCad2's start-up, the values options.startup's), then DisableLaser: insitu's own, so the
+// laser output stays off until a job arms it. Errors: out_of_range (a correction offset).
+Result<std::vector<std::vector<uint8_t>>> StartupCommands(const BoardOptions& options,
+                                                          const BoardCorrection& table);
+// Whether the board answers `command` (all single commands but a correction line).
+bool Answered(const std::vector<uint8_t>& command);
+// Opens the board as EzCad does: GetSerialNo and GetVersion (read, returned), then
+// StartupCommands, each answer read, and 50 ms for the analog outputs to settle. Errors:
+// device_error (transport), out_of_range (a correction offset).
+Result<BoardIdentity> StartUp(Transport& transport, const BoardOptions& options,
+                              const BoardCorrection& table);
+
 // A correction table (BoardCorrection, insitu/hw/lmc_cor.h) as WriteCorTable(1) and 4225
 // WriteCorLine commands (sign-magnitude words). Only WriteCorTable is answered.
 Result<std::vector<std::vector<uint8_t>>> CorrectionUpload(const BoardCorrection& table);
@@ -149,13 +203,20 @@ Eigen::Vector2d ApplyBoardTableMm(const BoardCorrection& table, const BoardOptio
                                   const Eigen::Vector2d& command_mm);
 
 // A Scanner on an LMC board. Arm/Disarm enable and disable the laser output; a marking list
-// opens the fibre laser's master oscillator, is streamed (every packet after the board reports
-// READY) and polled until the board is done, and closes it again; control.abort (checked while
-// streaming and polling) sends StopExecute, closes the oscillator, disables the laser and
-// resets the list. The pointer sweeps with the pointer port on and the laser off.
+// opens the fibre laser's master oscillator, is streamed (every packet once the board reports
+// READY, waiting for as long as it is busy with the list before) and polled until the board is
+// done, and closes it again; control.abort (checked at every poll) sends StopExecute, closes
+// the oscillator, disables the laser and resets the list. The pointer sweeps with the pointer
+// port on and the laser off.
 // `uploaded` is the table the board was given when it opened (empty: none), so that the
 // scanner can say what the galvos receive for a command (Scanner::DriveCommand).
+// `identity` names the board in ScannerInfo::model. The board must have been started (StartUp);
+// OpenScanner does both.
 std::unique_ptr<Scanner> MakeScanner(std::unique_ptr<Transport> transport, BoardOptions options,
-                                     BoardCorrection uploaded = {});
+                                     BoardCorrection uploaded = {}, BoardIdentity identity = {});
+// The board started as EzCad starts it (StartUp, with `table` or a blank one) and the Scanner on
+// it. Errors: StartUp's.
+Result<std::unique_ptr<Scanner>> OpenScanner(std::unique_ptr<Transport> transport,
+                                             BoardOptions options, BoardCorrection table = {});
 
 }  // namespace insitu::hw::lmc

@@ -1,7 +1,9 @@
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <thread>
 
 #include "hw/lmc/lmc.h"
 
@@ -28,11 +30,70 @@ uint16_t Distance(const std::array<uint16_t, 2>& a, const std::array<uint16_t, 2
   return static_cast<uint16_t>(std::min(std::floor(d), 65535.0));
 }
 
+// The source's power and pulse-rate commands (Source, insitu/hw/lmc_options.h), in the order
+// EzCad sends them: the rate first.
+Status AppendLaser(const GalvoList& list, const BoardOptions& o, std::vector<Command>* out) {
+  const double khz = list.laser_frequency_khz;
+  const double percent = 100.0 * list.laser_power;
+  const auto word = [](double v) { return static_cast<uint16_t>(std::round(v)); };
+  switch (o.source) {
+    case Source::kFiber:
+    case Source::kMopa:
+      // The Q-switch period in 50 ns units.
+      if (!(khz >= 20000.0 / 65535.0 && khz <= 20000.0)) {
+        return InvalidArgument("pulse rate " + std::to_string(khz) +
+                               " kHz is outside a fibre source's [0.31, 20000] kHz (the "
+                               "Q-switch period word)");
+      }
+      if (o.source == Source::kMopa) {
+        out->push_back({kFiberPulseWidth, word(o.pulse_width_ns), 0, 0, 0, 0});
+      }
+      out->push_back({kQSwitchPeriod, word(20000.0 / khz), 0, 0, 0, 0});
+      out->push_back({kMarkCurrent, word(list.laser_power * 0xFFF), 0, 0, 0, 0});
+      return Status::Ok();
+    case Source::kCo2:
+    case Source::kUv: {
+      // The pulse period in 100 ns units, the first pulse killer and the duty (power ratio)
+      // as the period's share in its own scale.
+      if (!(khz >= 10000.0 / 65535.0 && khz <= 10000.0)) {
+        return InvalidArgument("pulse rate " + std::to_string(khz) + " kHz is outside a " +
+                               SourceName(o.source) +
+                               " source's [0.16, 10000] kHz (the mark frequency word)");
+      }
+      const double power = o.power_invert ? 100.0 - percent : percent;
+      if (200.0 * power / khz > 65535.0) {
+        return InvalidArgument("power " + std::to_string(percent) + " % at " + std::to_string(khz) +
+                               " kHz overflows the power ratio word");
+      }
+      out->push_back({kMarkFreq, word(10000.0 / khz), 0, 0, 0, 0});
+      const uint16_t fpk = word(2000.0 / khz);
+      out->push_back({kSetCo2Fpk, fpk, fpk, 0, 0, 0});
+      out->push_back({kMarkPowerRatio, word(200.0 * power / khz), 0, 0, 0, 0});
+      return Status::Ok();
+    }
+  }
+  return InvalidArgument("unknown laser source");
+}
+
 }  // namespace
 
 std::vector<uint8_t> GotoXY(const std::array<uint16_t, 2>& from,
                             const std::array<uint16_t, 2>& to) {
   return SingleCommand(kGotoXY, to[0], to[1], 0, Distance(from, to));
+}
+
+const char* SourceName(Source s) {
+  switch (s) {
+    case Source::kFiber:
+      return "fiber";
+    case Source::kMopa:
+      return "mopa";
+    case Source::kCo2:
+      return "co2";
+    case Source::kUv:
+      return "uv";
+  }
+  return "?";
 }
 
 Status UsbSelector::Validate() const {
@@ -60,7 +121,20 @@ Status BoardOptions::Validate() const {
     return InvalidArgument("polygon_delay_us must be in [0, 65535]");
   }
   if (poll_ms < 1 || poll_ms > 1000) return InvalidArgument("poll_ms must be in 1..1000");
-  if (!(list_timeout_s > 0)) return InvalidArgument("list_timeout_s must be > 0");
+  if (!(list_timeout_s >= 0)) return InvalidArgument("list_timeout_s must be >= 0 (0: none)");
+  if (source == Source::kMopa) {
+    if (!(pulse_width_ns >= 1 && pulse_width_ns <= 65535)) {
+      return InvalidArgument("pulse_width_ns must be in [1, 65535] ns for a mopa source, got " +
+                             std::to_string(pulse_width_ns));
+    }
+  } else if (pulse_width_ns != 0) {
+    return InvalidArgument(std::string("pulse_width_ns means nothing to a ") + SourceName(source) +
+                           " source (only mopa has one)");
+  }
+  if (power_invert && source != Source::kUv) {
+    return InvalidArgument(std::string("power_invert means nothing to a ") + SourceName(source) +
+                           " source (only uv)");
+  }
   if (packets_before_start < 1) return InvalidArgument("packets_before_start must be >= 1");
   if (trigger_port != 0) {
     if ((trigger_port & (trigger_port - 1)) != 0) {
@@ -163,9 +237,6 @@ Result<std::vector<Command>> EncodeList(const GalvoList& list, const BoardOption
   if (!(list.laser_power >= 0 && list.laser_power <= 1)) {
     return InvalidArgument("laser power must be a fraction in [0, 1]");
   }
-  if (!(list.laser_frequency_khz >= 0.31 && list.laser_frequency_khz <= 20000)) {
-    return InvalidArgument("pulse rate must be in [0.31, 20000] kHz (the Q-switch period word)");
-  }
   const double per_ms = kUnits / o.lens_mm / 1000.0;  // units per ms at 1 mm/s
   const auto speed = [&](double mm_per_s) {
     // Truncated, as the reference list does; at least one unit per ms.
@@ -177,11 +248,7 @@ Result<std::vector<Command>> EncodeList(const GalvoList& list, const BoardOption
       {kDelayTime, static_cast<uint16_t>(std::round(o.open_mo_delay_us / 10.0)), 0, 0, 0, 0});
   out.push_back({kWritePortList, o.list_ports, 0, 0, 0, 0});
   out.push_back({kJumpSpeed, speed(list.jump_speed_mm_per_s), 0, 0, 0, 0});
-  out.push_back({kQSwitchPeriod,
-                 static_cast<uint16_t>(std::round(20000.0 / list.laser_frequency_khz)), 0, 0, 0,
-                 0});
-  out.push_back(
-      {kMarkCurrent, static_cast<uint16_t>(std::round(list.laser_power * 0xFFF)), 0, 0, 0, 0});
+  INSITU_RETURN_IF_ERROR(AppendLaser(list, o, &out));
   out.push_back({kMarkSpeed, speed(list.mark_speed_mm_per_s), 0, 0, 0, 0});
   out.push_back(Delay(kLaserOnDelay, list.laser_on_delay_us));
   out.push_back(Delay(kLaserOffDelay, list.laser_off_delay_us));
@@ -190,11 +257,17 @@ Result<std::vector<Command>> EncodeList(const GalvoList& list, const BoardOption
                  0, 0, 0});
 
   const auto& entries = list.entries;
+  // The jump delay is a list parameter, as the laser delays are: the board waits it after
+  // every jump from where it is set on. Set once, before the first jump.
+  bool jump_delay_set = false;
   for (size_t i = 0; i < entries.size(); ++i) {
     const GalvoListEntry& e = entries[i];
     const bool mark = e.kind == GalvoListEntry::Kind::kMark;
+    if (!mark && !jump_delay_set && list.jump_delay_us > 0) {
+      out.push_back(Delay(kJumpDelay, list.jump_delay_us));
+      jump_delay_set = true;
+    }
     INSITU_RETURN_IF_ERROR(AppendPoint(e.to_in_galvo, mark, o, position, z_word, &out));
-    if (!mark && list.jump_delay_us > 0) out.push_back(Delay(kJumpDelay, list.jump_delay_us));
     const bool sequence_ends =
         mark && (i + 1 == entries.size() || entries[i + 1].kind != GalvoListEntry::Kind::kMark);
     if (sequence_ends && list.mark_delay_us > 0) {
@@ -307,21 +380,26 @@ Command DecodeCommand(const uint8_t* b) {
 }
 
 std::string FormatCommands(const std::vector<Command>& commands) {
-  static const std::map<uint16_t, const char*> kNames = {{kJumpTo, "listJumpTo"},
-                                                         {kEndOfList, "listEndOfList"},
-                                                         {kDelayTime, "listDelayTime"},
-                                                         {kMarkTo, "listMarkTo"},
-                                                         {kJumpSpeed, "listJumpSpeed"},
-                                                         {kLaserOnDelay, "listLaserOnDelay"},
-                                                         {kLaserOffDelay, "listLaserOffDelay"},
-                                                         {kMarkSpeed, "listMarkSpeed"},
-                                                         {kJumpDelay, "listJumpDelay"},
-                                                         {kPolygonDelay, "listPolygonDelay"},
-                                                         {kWritePortList, "listWritePort"},
-                                                         {kMarkCurrent, "listMarkCurrent"},
-                                                         {kQSwitchPeriod, "listQSwitchPeriod"},
-                                                         {kSetDaZWord, "listSetDaZWord"},
-                                                         {kReadyMark, "listReadyMark"}};
+  static const std::map<uint16_t, const char*> kNames = {
+      {kJumpTo, "listJumpTo"},
+      {kEndOfList, "listEndOfList"},
+      {kDelayTime, "listDelayTime"},
+      {kMarkTo, "listMarkTo"},
+      {kJumpSpeed, "listJumpSpeed"},
+      {kLaserOnDelay, "listLaserOnDelay"},
+      {kLaserOffDelay, "listLaserOffDelay"},
+      {kMarkSpeed, "listMarkSpeed"},
+      {kJumpDelay, "listJumpDelay"},
+      {kPolygonDelay, "listPolygonDelay"},
+      {kWritePortList, "listWritePort"},
+      {kMarkCurrent, "listMarkCurrent"},
+      {kQSwitchPeriod, "listQSwitchPeriod"},
+      {kSetDaZWord, "listSetDaZWord"},
+      {kMarkFreq, "listMarkFreq"},
+      {kMarkPowerRatio, "listMarkPowerRatio"},
+      {kSetCo2Fpk, "listSetCo2FPK"},
+      {kFiberPulseWidth, "listFiberYLPMPulseWidth"},
+      {kReadyMark, "listReadyMark"}};
   std::string out;
   for (const Command& c : commands) {
     const auto it = kNames.find(c[0]);
@@ -369,6 +447,91 @@ Status UploadCorrection(Transport& transport, const BoardCorrection& table) {
     if (i == 0) INSITU_RETURN_IF_ERROR(transport.Read(reply, sizeof reply));
   }
   return Status::Ok();
+}
+
+}  // namespace insitu::hw::lmc
+
+namespace insitu::hw::lmc {
+
+Result<std::array<uint16_t, 4>> Query(Transport& transport, uint16_t op, uint16_t p1, uint16_t p2,
+                                      uint16_t p3, uint16_t p4) {
+  const std::vector<uint8_t> bytes = SingleCommand(op, p1, p2, p3, p4);
+  INSITU_RETURN_IF_ERROR(transport.Write(bytes.data(), bytes.size()));
+  uint8_t reply[kReplyBytes];
+  INSITU_RETURN_IF_ERROR(transport.Read(reply, sizeof reply));
+  std::array<uint16_t, 4> words{};
+  for (size_t i = 0; i < words.size(); ++i) {
+    words[i] = static_cast<uint16_t>(reply[2 * i] | (reply[2 * i + 1] << 8));
+  }
+  return words;
+}
+
+std::string BoardIdentity::Describe() const {
+  char v[32];
+  std::snprintf(v, sizeof v, "%04x %04x %04x", version[0], version[1], version[2]);
+  return "serial " + serial + ", version " + v;
+}
+
+bool Answered(const std::vector<uint8_t>& command) {
+  return command.size() == kCommandBytes && DecodeCommand(command.data())[0] != kWriteCorLine;
+}
+
+Result<std::vector<std::vector<uint8_t>>> StartupCommands(const BoardOptions& o,
+                                                          const BoardCorrection& table) {
+  const StartupOptions& s = o.startup;
+  std::vector<std::vector<uint8_t>> out{SingleCommand(kReset)};
+  if (table.offsets.empty()) {
+    out.push_back(SingleCommand(kWriteCorTable, 0));
+  } else {
+    INSITU_ASSIGN_OR_RETURN(auto upload, CorrectionUpload(table));
+    for (auto& c : upload) out.push_back(std::move(c));
+  }
+  const std::vector<std::array<uint16_t, 5>> rest = {
+      {kEnableLaser, 0, 0, 0, 0},
+      {kSetControlMode, s.control_mode, 0, 0, 0},
+      {kSetLaserMode, s.laser_mode, 0, 0, 0},
+      {kSetDelayMode, s.delay_mode, 0, 0, 0},
+      {kSetTiming, s.timing_mode, 0, 0, 0},
+      {kSetStandby, s.standby_1, s.standby_2, 0, 0},
+      {kSetFirstPulseKiller, s.first_pulse_killer, 0, 0, 0},
+      {kSetPwmHalfPeriod, s.pwm_half_period, 0, 0, 0},
+      {kSetPwmPulseWidth, s.pwm_pulse_width, 0, 0, 0},
+      {kFiberSetMo, 0, 0, 0, 0},
+      {kSetFpkParam2, s.fpk2[0], s.fpk2[1], s.fpk2[2], s.fpk2[3]},
+      {kSetFlyRes, s.fly_res[0], s.fly_res[1], s.fly_res[2], s.fly_res[3]},
+      {kEnableZ, 0, 0, 0, 0},
+      {kWriteAnalogPort1, s.analog_port_1, 0, 0, 0},
+      {kEnableZ, 0, 0, 0, 0},
+      {kDisableLaser, 0, 0, 0, 0},
+  };
+  for (const auto& c : rest) out.push_back(SingleCommand(c[0], c[1], c[2], c[3], c[4]));
+  return out;
+}
+
+Result<BoardIdentity> StartUp(Transport& transport, const BoardOptions& options,
+                              const BoardCorrection& table) {
+  INSITU_RETURN_IF_ERROR(options.Validate());
+  BoardIdentity id;
+  const auto serial = Query(transport, kGetSerialNo);
+  if (!serial.ok()) return serial.status().Prefixed("reading the board's serial number");
+  char hex[24];
+  std::snprintf(hex, sizeof hex, "0x%04x%04x%04x%04x", (*serial)[0], (*serial)[1], (*serial)[2],
+                (*serial)[3]);
+  id.serial = hex;
+  const auto version = Query(transport, kGetVersion);
+  if (!version.ok()) return version.status().Prefixed("reading the board's version");
+  id.version = *version;
+  INSITU_ASSIGN_OR_RETURN(const auto commands, StartupCommands(options, table));
+  uint8_t reply[kReplyBytes];
+  for (const auto& c : commands) {
+    INSITU_RETURN_IF_ERROR(transport.Write(c.data(), c.size()).Prefixed("starting the board"));
+    if (Answered(c)) {
+      INSITU_RETURN_IF_ERROR(transport.Read(reply, sizeof reply).Prefixed("starting the board"));
+    }
+  }
+  // The analog outputs (the laser's power reference, the focus Z) settle.
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  return id;
 }
 
 }  // namespace insitu::hw::lmc

@@ -13,8 +13,12 @@ namespace {
 
 class BoardScanner : public Scanner {
  public:
-  BoardScanner(std::unique_ptr<Transport> transport, BoardOptions options, BoardCorrection uploaded)
-      : transport_(std::move(transport)), options_(options), uploaded_(std::move(uploaded)) {}
+  BoardScanner(std::unique_ptr<Transport> transport, BoardOptions options, BoardCorrection uploaded,
+               BoardIdentity identity)
+      : transport_(std::move(transport)),
+        options_(options),
+        uploaded_(std::move(uploaded)),
+        identity_(std::move(identity)) {}
 
   ~BoardScanner() override {
     // Leave the board safe: nothing running, the oscillator closed, the laser output off.
@@ -23,7 +27,9 @@ class BoardScanner : public Scanner {
 
   ScannerInfo info() const override {
     ScannerInfo i;
-    i.model = "BJJCZ LMC board (" + transport_->Describe() + ")";
+    i.model = "BJJCZ LMC board (" + transport_->Describe() +
+              (identity_.serial.empty() ? "" : ", " + identity_.Describe()) + ", " +
+              SourceName(options_.source) + " source)";
     // The floor in ToUnits puts +lens/2 one unit past 0xFFFF: half the lens minus one unit.
     i.field_half_size_mm = 0.5 * options_.lens_mm * (1.0 - 2.0 / 65536.0);
     i.table_field_mm = options_.lens_mm;
@@ -83,6 +89,8 @@ class BoardScanner : public Scanner {
     return Status::Ok();
   }
 
+  std::string ReceivedList() const override { return received_; }
+
   Status Arm() override {
     INSITU_RETURN_IF_ERROR(Single(kEnableLaser).status());
     armed_ = true;
@@ -102,6 +110,11 @@ class BoardScanner : public Scanner {
     uint16_t z_word = z_word_;
     INSITU_ASSIGN_OR_RETURN(auto commands, EncodeList(list, options_, &position, &z_word));
     const double estimate_s = Duration(list);
+    // What the board receives: the commands and the end-of-list Packets adds.
+    received_ = FormatCommands(commands);
+    if (commands.empty() || commands.back()[0] != kEndOfList) {
+      received_ += FormatCommands({Command{kEndOfList, 0, 0, 0, 0, 0}});
+    }
     // From here on every way out leaves the board stopped and the oscillator closed.
     z_word_ = 0;  // unknown until the list has run
     if (marks) INSITU_RETURN_IF_ERROR(Single(kFiberSetMo, 1).status());
@@ -148,33 +161,16 @@ class BoardScanner : public Scanner {
     return static_cast<uint16_t>(reply[6] | (reply[7] << 8));
   }
 
-  // Streams `commands` and polls until the board is no longer busy; the list's time estimate
+  // Streams `commands` and waits until the board is no longer busy; the list's time estimate
   // stands in for progress. Every failure and control.abort leave the board stopped (Abort).
   Status Run(const std::vector<Command>& commands, const ListControl& control,
              double estimate_s) {
-    const auto start = std::chrono::steady_clock::now();
+    run_estimate_s_ = estimate_s;
     const Status sent = SendList(commands, control);
     if (!sent.ok()) return Stopped(sent);
-    for (;;) {
-      if (control.abort != nullptr && control.abort->load()) {
-        return Stopped(Status(StatusCode::kCancelled,
-                              "list aborted: StopExecute sent, oscillator closed, laser output "
-                              "disabled"));
-      }
-      auto status = Single(kGetVersion);
-      if (!status.ok()) return Stopped(status.status().Prefixed("while the list ran"));
-      if (!(*status & kStatusBusy)) return Status::Ok();
-      const double elapsed =
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      if (elapsed > options_.list_timeout_s) {
-        return Stopped(Status(StatusCode::kDeviceError,
-                              "the board was still busy after " +
-                                  std::to_string(options_.list_timeout_s) + " s"));
-      }
-      // The board tells no progress: the list's own time estimate stands in, short of 1.
-      if (control.progress && estimate_s > 0) control.progress(std::min(0.99, elapsed / estimate_s));
-      std::this_thread::sleep_for(std::chrono::milliseconds(options_.poll_ms));
-    }
+    const Status done = WaitFor(Until::kIdle, &control);
+    if (!done.ok()) return Stopped(done);
+    return Status::Ok();
   }
 
   Status Goto(const Eigen::Vector3d& p) {
@@ -189,11 +185,12 @@ class BoardScanner : public Scanner {
   // every packet.
   Status SendList(const std::vector<Command>& commands, const ListControl& control) {
     const auto packets = Packets(commands);
+    run_start_ = std::chrono::steady_clock::now();
     INSITU_RETURN_IF_ERROR(Single(kResetList).status());
     const size_t before =
         std::min(packets.size(), static_cast<size_t>(options_.packets_before_start));
     for (size_t i = 0; i < packets.size(); ++i) {
-      INSITU_RETURN_IF_ERROR(WaitReady(control));
+      INSITU_RETURN_IF_ERROR(WaitFor(Until::kReady, &control));
       INSITU_RETURN_IF_ERROR(transport_->Write(packets[i].data(), packets[i].size()));
       INSITU_RETURN_IF_ERROR(Single(kSetEndOfList).status());
       if (i + 1 == before) INSITU_RETURN_IF_ERROR(Single(kExecuteList).status());
@@ -224,17 +221,46 @@ class BoardScanner : public Scanner {
                   why.message() + "; stopping the board also failed: " + stopped.message());
   }
 
-  Status WaitReady(const ListControl& control) {
+  enum class Until { kReady, kIdle };
+  // Polls the board's status every poll_ms until it is READY for the next packet (kReady) or no
+  // longer BUSY (kIdle). However long a list keeps the board busy, the wait goes on (a long
+  // list runs for hours; list_timeout_s > 0 bounds it), with progress from the list's time
+  // estimate, and control->abort is looked at before every poll: cancelled within one poll.
+  // A board that reports neither READY nor BUSY for a second while a packet waits has lost the
+  // list. `limit_s` > 0: the whole wait's bound (Abort's flush).
+  Status WaitFor(Until until, const ListControl* control, double limit_s = 0.0) {
     const auto start = std::chrono::steady_clock::now();
+    auto stuck_since = start;
     for (;;) {
-      if (control.abort != nullptr && control.abort->load()) {
-        return Status(StatusCode::kCancelled, "list aborted while it streamed");
+      if (control != nullptr && control->abort != nullptr && control->abort->load()) {
+        return Status(StatusCode::kCancelled,
+                      "list aborted: StopExecute sent, oscillator closed, laser output disabled");
       }
-      INSITU_ASSIGN_OR_RETURN(const uint16_t s, Single(kGetVersion));
-      if (s & kStatusReady) return Status::Ok();
-      if (std::chrono::steady_clock::now() - start > std::chrono::seconds(10)) {
+      INSITU_ASSIGN_OR_RETURN(const uint16_t status, Single(kGetVersion));
+      const bool busy = (status & kStatusBusy) != 0;
+      if (until == Until::kReady ? (status & kStatusReady) != 0 : !busy) return Status::Ok();
+      const auto now = std::chrono::steady_clock::now();
+      const double waited = std::chrono::duration<double>(now - start).count();
+      if (limit_s > 0 && waited > limit_s) {
+        return Status(StatusCode::kDeviceError, "the board stayed busy after its list was stopped");
+      }
+      const double running = std::chrono::duration<double>(now - run_start_).count();
+      if (options_.list_timeout_s > 0 && running > options_.list_timeout_s) {
+        return Status(StatusCode::kDeviceError, "the board was still busy after list_timeout_s (" +
+                                                    std::to_string(options_.list_timeout_s) +
+                                                    " s)");
+      }
+      if (busy) stuck_since = now;
+      if (until == Until::kReady &&
+          std::chrono::duration<double>(now - stuck_since).count() > 1.0) {
         return Status(StatusCode::kDeviceError,
-                      "the board did not take the next list packet within 10 s");
+                      "the board neither took the next list packet nor ran the list for 1 s "
+                      "(status word " +
+                          std::to_string(status) + ")");
+      }
+      // The board tells no progress: the list's own time estimate stands in, short of 1.
+      if (control != nullptr && control->progress && run_estimate_s_ > 0) {
+        control->progress(std::min(0.99, running / run_estimate_s_));
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(options_.poll_ms));
     }
@@ -259,15 +285,7 @@ class BoardScanner : public Scanner {
     INSITU_RETURN_IF_ERROR(transport_->Write(empty.data(), empty.size()));
     for (uint16_t op : {kSetEndOfList, kExecuteList}) INSITU_RETURN_IF_ERROR(Single(op).status());
     // The empty list takes the board a tick; idle again within half a second or named.
-    const auto start = std::chrono::steady_clock::now();
-    for (;;) {
-      INSITU_ASSIGN_OR_RETURN(const uint16_t status, Single(kGetVersion));
-      if (!(status & kStatusBusy)) break;
-      if (std::chrono::steady_clock::now() - start > std::chrono::milliseconds(500)) {
-        return Status(StatusCode::kDeviceError, "the board stayed busy after its list was stopped");
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(options_.poll_ms));
-    }
+    INSITU_RETURN_IF_ERROR(WaitFor(Until::kIdle, nullptr, 0.5));
     pointer_on_ = false;
     return Single(kWritePort, 0).status();
   }
@@ -275,6 +293,11 @@ class BoardScanner : public Scanner {
   std::unique_ptr<Transport> transport_;
   BoardOptions options_;
   BoardCorrection uploaded_;  // what the board was given when it opened (empty: none)
+  BoardIdentity identity_;
+  std::string received_;  // the last marking list as the board received it (ReceivedList)
+  // The list running: when it started streaming and its time estimate (progress).
+  std::chrono::steady_clock::time_point run_start_ = std::chrono::steady_clock::now();
+  double run_estimate_s_ = 0.0;
   bool armed_ = false;
   bool pointer_on_ = false;
   std::array<uint16_t, 2> position_{0x8000, 0x8000};
@@ -284,8 +307,15 @@ class BoardScanner : public Scanner {
 }  // namespace
 
 std::unique_ptr<Scanner> MakeScanner(std::unique_ptr<Transport> transport, BoardOptions options,
-                                     BoardCorrection uploaded) {
-  return std::make_unique<BoardScanner>(std::move(transport), options, std::move(uploaded));
+                                     BoardCorrection uploaded, BoardIdentity identity) {
+  return std::make_unique<BoardScanner>(std::move(transport), options, std::move(uploaded),
+                                        std::move(identity));
+}
+
+Result<std::unique_ptr<Scanner>> OpenScanner(std::unique_ptr<Transport> transport,
+                                             BoardOptions options, BoardCorrection table) {
+  INSITU_ASSIGN_OR_RETURN(BoardIdentity identity, StartUp(*transport, options, table));
+  return MakeScanner(std::move(transport), options, std::move(table), std::move(identity));
 }
 
 }  // namespace insitu::hw::lmc

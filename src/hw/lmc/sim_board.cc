@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstdio>
 #include <deque>
 #include <mutex>
+#include <set>
 #include <thread>
 
 namespace insitu::hw::lmc {
@@ -37,11 +39,37 @@ struct SimBoard::Impl {
     double to_pulse_s = 0.0;  // of it, before the pulse
   } sweep;
 
-  void Reply(uint16_t status) {
+  // The start-up commands received since power-up or the last Reset (StartupCommands).
+  std::set<uint16_t> startup_seen;
+  double sweep_jump_delay_s = 0.0;  // a triggered sweep's jump delay (the list parameter)
+
+  void Reply(uint16_t status) { Reply({0, 0, 0, status}); }
+  void Reply(const std::array<uint16_t, 4>& words) {
     std::array<uint8_t, kReplyBytes> r{};
-    r[6] = static_cast<uint8_t>(status & 0xFF);
-    r[7] = static_cast<uint8_t>(status >> 8);
+    for (size_t i = 0; i < words.size(); ++i) {
+      r[2 * i] = static_cast<uint8_t>(words[i] & 0xFF);
+      r[2 * i + 1] = static_cast<uint8_t>(words[i] >> 8);
+    }
     replies.push_back(r);
+  }
+
+  void Reject(const std::string& what) { log.rejected.push_back(what); }
+
+  static std::string Hex(uint16_t op) {
+    char s[8];
+    std::snprintf(s, sizeof s, "0x%04x", op);
+    return s;
+  }
+
+  // What a board needs before it runs a list: Reset, a correction table (loaded or blank) and
+  // the modes EzCad sets (StartupCommands).
+  bool Started() const {
+    for (uint16_t op :
+         {kReset, kWriteCorTable, kSetControlMode, kSetLaserMode, kSetDelayMode, kSetTiming,
+          kSetStandby, kSetFirstPulseKiller, kSetPwmHalfPeriod, kSetPwmPulseWidth}) {
+      if (!startup_seen.count(op)) return false;
+    }
+    return true;
   }
 
   void Join() {
@@ -118,8 +146,8 @@ struct SimBoard::Impl {
         case kJumpSpeed:
           params.jump_speed_mm_per_s = Mm(c[1]);
           break;
-        case kJumpDelay:
-          sweep.pending_s += c[1] * 1e-6;
+        case kJumpDelay:  // a parameter: the wait after every jump from here on
+          sweep_jump_delay_s = (c[2] & 0x8000 ? -1.0 : 1.0) * c[1] * 1e-6;
           break;
         case kDelayTime:
           sweep.pending_s += c[1] * 10e-6;
@@ -148,6 +176,7 @@ struct SimBoard::Impl {
             sweep.pulse_pending = false;
           }
           sweep.pending_s += (q - sweep.at).norm() / params.jump_speed_mm_per_s;
+          if (c[0] == kJumpTo) sweep.pending_s += std::max(0.0, sweep_jump_delay_s);
           sweep.at = q;
           break;
         }
@@ -195,6 +224,21 @@ struct SimBoard::Impl {
     std::vector<sim::ListMove> moves;
     bool marks = false;
     bool ended = false;
+    // Every parameter applies from its place in the list on: a change after moves runs the
+    // moves before it with the values they had (the head settles there).
+    const auto flush = [&] {
+      if (moves.empty()) return;
+      if (!marks && (ports & options.pointer_port) && moves.size() >= 2) return;  // a light list
+      (void)world->ExecuteMarkingList(moves, params, &abort);
+      moves.clear();
+      marks = false;
+    };
+    const auto set = [&](double* field, double value) {
+      if (*field == value) return;
+      flush();
+      *field = value;
+    };
+    std::vector<std::string> unknown;
     for (const Command& c : commands) {
       if (ended) break;
       switch (c[0]) {
@@ -207,32 +251,44 @@ struct SimBoard::Impl {
           if (moves.empty()) {
             world->Advance(c[1] * 10e-6);  // before the first move: the oscillator settles
           } else {
-            params.mark_delay_us = c[1] * 10.0;
+            params.mark_delay_us = c[1] * 10.0;  // after a mark sequence: its mark delay
           }
           break;
         case kWritePortList:
           ports = c[1];
           break;
         case kJumpSpeed:
-          params.jump_speed_mm_per_s = Mm(c[1]);
+          set(&params.jump_speed_mm_per_s, Mm(c[1]));
           break;
         case kMarkSpeed:
-          params.mark_speed_mm_per_s = Mm(c[1]);
+          set(&params.mark_speed_mm_per_s, Mm(c[1]));
           break;
-        case kMarkCurrent:
-          params.power_fraction = c[1] / 4095.0;
+        case kMarkCurrent:  // fibre, mopa
+          set(&params.power_fraction, c[1] / 4095.0);
           break;
-        case kQSwitchPeriod:
-          if (c[1] > 0) params.pulse_frequency_khz = 20000.0 / c[1];
+        case kQSwitchPeriod:  // fibre, mopa: 50 ns units
+          if (c[1] > 0) set(&params.pulse_frequency_khz, 20000.0 / c[1]);
           break;
+        case kMarkFreq:  // co2, uv: 100 ns units
+          if (c[1] > 0) set(&params.pulse_frequency_khz, 10000.0 / c[1]);
+          break;
+        case kMarkPowerRatio: {  // co2, uv: 200 x power % / kHz
+          const double percent = c[1] * params.pulse_frequency_khz / 200.0;
+          const double power = options.power_invert ? 100.0 - percent : percent;
+          set(&params.power_fraction, std::clamp(power / 100.0, 0.0, 1.0));
+          break;
+        }
+        case kSetCo2Fpk:
+        case kFiberPulseWidth:
+          break;  // the simulated source has no first pulse or pulse shape
         case kLaserOnDelay:
-          params.laser_on_delay_us = c[1];
+          set(&params.laser_on_delay_us, c[1]);
           break;
         case kLaserOffDelay:
-          params.laser_off_delay_us = c[1];
+          set(&params.laser_off_delay_us, c[1]);
           break;
         case kJumpDelay:
-          params.jump_delay_us = c[1];
+          set(&params.jump_delay_us, c[1]);
           break;
         case kPolygonDelay:
           break;  // corners between marks: the simulated head has no corner model
@@ -250,11 +306,13 @@ struct SimBoard::Impl {
           break;
         }
         default:
-          break;  // opcodes the simulated head has no use for
+          unknown.push_back("list opcode " + Hex(c[0]) + " is not one the board knows");
+          break;
       }
     }
     if (!locked) shared.lock();
     log.ports = ports;
+    for (std::string& u : unknown) Reject(std::move(u));
     if (!locked) shared.unlock();
     if (moves.empty()) return ended;
     if (!marks && (ports & options.pointer_port) && moves.size() >= 2) {
@@ -271,6 +329,36 @@ struct SimBoard::Impl {
     ++log.single_commands;
     switch (c[0]) {
       case kGetVersion:
+        Reply({0x0001, 0x0000, 0x0000,
+               static_cast<uint16_t>((running ? kStatusBusy : 0) | kStatusReady)});
+        return;
+      case kGetSerialNo:  // four words of serial, no status
+        Reply({0x0e2c, 0x2026, 0x1127, 0x0001});
+        return;
+      case kReset:  // power-up state: no list, the modes to be set again, the laser off
+        ++log.resets;
+        buffer.clear();
+        list_open = false;
+        startup_seen.clear();
+        log.laser_enabled = false;
+        log.mo_open = false;
+        log.ports = 0;
+        params = sim::MarkingParams{};
+        if (!running) EndSweep();
+        break;
+      case kSetControlMode:
+      case kSetLaserMode:
+      case kSetDelayMode:
+      case kSetTiming:
+      case kSetStandby:
+      case kSetFirstPulseKiller:
+      case kSetPwmHalfPeriod:
+      case kSetPwmPulseWidth:
+      case kSetFpkParam2:
+      case kSetFlyRes:
+      case kEnableZ:
+      case kWriteAnalogPort1:
+      case kSetEndOfList:
         break;
       case kResetList:
         buffer.clear();
@@ -278,6 +366,13 @@ struct SimBoard::Impl {
         if (!running) EndSweep();
         break;
       case kExecuteList:
+        if (!Started()) {
+          Reject(
+              "ExecuteList before the board's start-up (Reset, correction table, modes): "
+              "the list was not run");
+          buffer.clear();
+          break;
+        }
         list_open = true;
         if (IsLightList(buffer)) {
           // The pointer starts sweeping within microseconds of the command, long before any
@@ -323,8 +418,9 @@ struct SimBoard::Impl {
         }
         break;
       case kWriteCorTable:
-        // A new table: until its last line the board corrects nothing.
+        // A new table: until its last line the board corrects nothing (a blank one: never).
         log.correction.clear();
+        log.correction_blank = c[1] == 0;
         world->ClearBoardCorrection(this);
         break;
       case kWriteCorLine: {
@@ -344,8 +440,11 @@ struct SimBoard::Impl {
         return;  // the board does not answer a correction line
       }
       default:
+        Reject("single opcode " + Hex(c[0]) + " is not one the board knows");
         break;
     }
+    startup_seen.insert(c[0]);
+    log.started = Started();
     Reply(static_cast<uint16_t>((running ? kStatusBusy : 0) | kStatusReady));
   }
 };

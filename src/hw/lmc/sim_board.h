@@ -7,6 +7,8 @@
 #pragma once
 
 #include <memory>
+#include <string>
+#include <vector>
 
 #include "hw/lmc/lmc.h"
 #include "insitu/sim/world.h"
@@ -26,6 +28,15 @@ struct SimBoardLog {
   uint16_t ports = 0;
   uint16_t last_goto_distance = 0;                 // the last GotoXY's distance word (p4)
   std::vector<std::array<int32_t, 2>> correction;  // as uploaded, signed
+  bool correction_blank = false;                   // WriteCorTable 0: a blank table
+  // The start-up a board needs before it runs a list (Reset, the correction table, the modes,
+  // standby, first pulse killer and PWM: StartupCommands) received since power-up or the last
+  // Reset.
+  bool started = false;
+  int resets = 0;
+  // What the board would not accept, one line each: a list executed before the start-up, an
+  // opcode it does not know. Tests expect none.
+  std::vector<std::string> rejected;
 };
 
 class SimBoard : public Transport {
