@@ -1,6 +1,7 @@
 #include "insitu/job/job_file.h"
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 
@@ -157,7 +158,9 @@ void ReadWords(ConfigReader& r, const std::string& key, const std::vector<uint16
   for (size_t i = 0; i < values.size(); ++i) {
     const double v = values[i];
     if (!(v >= 0 && v <= 0xFFFF && v == std::floor(v))) {
-      r.Fail(key, std::to_string(v) + " is not a 16-bit word (0..65535)");
+      char text[32];
+      std::snprintf(text, sizeof text, "%g", v);
+      r.Fail(key, std::string(text) + " is not a 16-bit word (0..65535)");
       return;
     }
     *out[i] = static_cast<uint16_t>(v);

@@ -589,6 +589,46 @@ TEST(Lmc, TheBoardStartsAsEzCadStartsIt) {
   EXPECT_EQ(find(kWriteCorTable)[1], 1);
 }
 
+// A transport that fails the first write of one opcode (a cable pulled mid start-up).
+class FailOnce : public Transport {
+ public:
+  FailOnce(Transport* inner, uint16_t op) : inner_(inner), op_(op) {}
+  Status Write(const uint8_t* data, size_t size) override {
+    if (!failed_ && size == kCommandBytes && DecodeCommand(data)[0] == op_) {
+      failed_ = true;
+      return Status(StatusCode::kDeviceError, "usb: transfer timed out");
+    }
+    return inner_->Write(data, size);
+  }
+  Status Read(uint8_t* data, size_t size) override { return inner_->Read(data, size); }
+  std::string Describe() const override { return inner_->Describe(); }
+
+ private:
+  Transport* inner_;
+  uint16_t op_;
+  bool failed_ = false;
+};
+
+// A start-up that fails after it enabled the laser output leaves the output disabled, and a
+// Reset returns the emulated board to power-up: no list runs until it is started again.
+TEST(Lmc, AFailedStartUpLeavesTheLaserOff) {
+  sim::WorldOptions w;
+  w.part.kind = "none";
+  SimBoard board(std::make_shared<sim::SimWorld>(w), SimHeadBoard());
+  FailOnce wire(&board, kSetTiming);
+  const auto id = StartUp(wire, SimHeadBoard(), {});
+  ASSERT_FALSE(id.ok());
+  EXPECT_EQ(id.status().code(), StatusCode::kDeviceError);
+  EXPECT_FALSE(board.log().laser_enabled);
+  EXPECT_FALSE(board.log().mo_open);
+  EXPECT_FALSE(board.log().started);
+  ASSERT_TRUE(StartUp(board, SimHeadBoard(), {}).ok());  // the second try completes
+  EXPECT_TRUE(board.log().started);
+  StatusWord(board, kReset);
+  EXPECT_FALSE(board.log().started);
+  EXPECT_EQ(board.log().resets, 3);  // each start-up's and this one
+}
+
 // A board fresh from power-up that was never started runs no list: the emulator refuses it
 // and says so, as the tests' strict board must.
 TEST(Lmc, ABoardNeverStartedRunsNoList) {
@@ -968,16 +1008,22 @@ TEST(Lmc, CapturesFromOtherToolsDecodeOrSayWhyNot) {
 
   // The kernel's usbmon text: a command whole, a list packet cut at 32 bytes.
   const std::string text =
+      "ffff8b29 0990 S Bo:1:003:2 -115 31 = 55534243 01000000 00020000 80000a28 00000000 "
+      "00000000 00000000 000000\n"  // a disk's command block on the same bus: not the board
       "ffff8b2a 1000 S Bo:1:005:2 -115 12 = 12000000 00000000 00000000\n"
       "ffff8b2a 1010 C Bo:1:005:2 0 12 >\n"
       "ffff8b2b 1020 S Bo:1:005:2 -115 3072 = 51800000 00000000 00000000 01800080 00800000 "
       "00000000 02800000 00000000\n";
   const auto cut = ReadCapture(text, "usbmon.txt");
   ASSERT_TRUE(cut.ok()) << cut.status().ToString();
-  ASSERT_EQ(cut->size(), 2u);
-  EXPECT_EQ((*cut)[1].length, 3072u);
-  EXPECT_EQ((*cut)[1].data.size(), 32u);
+  ASSERT_EQ(cut->size(), 3u);
+  EXPECT_EQ((*cut)[2].length, 3072u);
+  EXPECT_EQ((*cut)[2].data.size(), 32u);
+  EXPECT_EQ((*cut)[2].device, 5);
   const std::string cut_decoded = DecodeTraffic(*cut);
+  EXPECT_NE(cut_decoded.find("skipped: bus 1 device 3 (1 transfers)"), std::string::npos)
+      << cut_decoded;
+  EXPECT_EQ(cut_decoded.find("55534243"), std::string::npos);
   EXPECT_NE(cut_decoded.find("cut by the capture"), std::string::npos) << cut_decoded;
   EXPECT_NE(cut_decoded.find("pcapng"), std::string::npos);
 

@@ -85,6 +85,26 @@ TEST(Cli, OutOfRangeValuesAreNamed) {
   EXPECT_NE(type.err.find("scan.speed_mm_per_s"), std::string::npos) << type.err;
 }
 
+// An LMC board's settings: a source it does not have, a setting its source has no use for,
+// and a capture that is not one, each named.
+TEST(Cli, LmcSettingsAndCapturesAreChecked) {
+  const std::string job = std::string(INSITU_SOURCE_DIR) + "/config/jobs/mark_plate_lmc.yaml";
+  const CliRun source =
+      Insitu("run " + job + " --set machine.lmc.source=diode --out /tmp/insitu_cli");
+  EXPECT_EQ(source.exit_code, 2);
+  EXPECT_NE(source.err.find("source"), std::string::npos) << source.err;
+  const CliRun width =
+      Insitu("run " + job + " --set machine.lmc.pulse_width_ns=100 --out /tmp/insitu_cli");
+  EXPECT_EQ(width.exit_code, 2);
+  EXPECT_NE(width.err.find("pulse_width_ns"), std::string::npos) << width.err;
+  const CliRun missing = Insitu("lmc decode /nonexistent/traffic.pcapng");
+  EXPECT_NE(missing.exit_code, 0);
+  EXPECT_NE(missing.err.find("/nonexistent/traffic.pcapng"), std::string::npos) << missing.err;
+  const CliRun junk = Insitu("lmc decode " + Job());  // a YAML job, not a capture
+  EXPECT_EQ(junk.exit_code, 2);
+  EXPECT_NE(junk.err.find("usbmon"), std::string::npos) << junk.err;
+}
+
 TEST(Cli, BadSetSyntaxAndUnknownJobKind) {
   EXPECT_EQ(Insitu("run " + Job() + " --set nonsense").exit_code, 2);
   const std::string job = WriteJob("kind.yaml", "job: teleport\n");

@@ -24,6 +24,7 @@ namespace insitu::hw::lmc {
 struct CapturedTransfer {
   std::vector<uint8_t> data;
   size_t length = 0;
+  int bus = 0, device = 0;  // the USB device it went to (0: not in the capture)
 };
 
 // The OUT transfers of a capture, in order. `name` only names the capture in errors. Errors:
@@ -32,7 +33,9 @@ struct CapturedTransfer {
 Result<std::vector<CapturedTransfer>> ReadCapture(const std::string& bytes,
                                                   const std::string& name);
 
-// The traffic as `insitu lmc decode` prints it. Each list the board received (from a ResetList
+// The traffic as `insitu lmc decode` prints it, of the board: the device whose OUT transfers
+// to endpoint 2 are all commands and list packets, the most of them (others named, skipped).
+// Each list the board received (from a ResetList
 // to the next), one command a line as FormatCommands writes them and as a job's galvo_list.txt
 // holds the marking list: its commands up to and including its end-of-list (the padding after
 // it is not the list). Single commands are comment lines ("# GotoXY 8000 8000 ..."), runs of

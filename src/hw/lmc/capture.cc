@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <map>
 #include <mutex>
 #include <sstream>
 
@@ -62,6 +63,8 @@ void TakePacket(uint32_t link, const uint8_t* d, size_t n, size_t original,
     CapturedTransfer t;
     t.data.assign(d + header, d + n);
     t.length = std::max<size_t>(length, t.data.size());
+    t.bus = b.U16(12);
+    t.device = d[11];
     (void)original;
     out->push_back(std::move(t));
   } else if (link == 249) {
@@ -71,10 +74,14 @@ void TakePacket(uint32_t link, const uint8_t* d, size_t n, size_t original,
     const bool completion = (d[16] & 1) != 0;  // PDO -> FDO: the answer, no OUT data
     const uint8_t endpoint = d[21], transfer = d[22];
     const uint32_t length = b.U32(23);
-    if (completion || transfer != 3 || endpoint != kOutEndpoint || header > n) return;
+    if (completion || transfer != 3 || endpoint != kOutEndpoint || header < 27 || header > n) {
+      return;
+    }
     CapturedTransfer t;
     t.data.assign(d + header, d + n);
     t.length = std::max<size_t>(length, t.data.size());
+    t.bus = b.U16(17);
+    t.device = b.U16(19);
     out->push_back(std::move(t));
   }
 }
@@ -140,7 +147,7 @@ Result<std::vector<CapturedTransfer>> ReadPcapng(const std::string& s, const std
         return ParseError(name + ": a packet of interface " + std::to_string(iface) +
                           " before its description");
       }
-      if (20 + captured > body_n) return Truncated(name, at);
+      if (static_cast<size_t>(captured) > body_n - 20) return Truncated(name, at);
       TakePacket(links[iface], body + 20, captured, original, &out);
     } else if (type == 3) {  // simple packet: interface 0
       if (body_n < 4 || links.empty()) return Truncated(name, at);
@@ -168,11 +175,23 @@ Result<std::vector<CapturedTransfer>> ReadUsbmonText(const std::string& s,
     if (event != "S" && event != "C" && event != "E") continue;
     ++events;
     if (event != "S" || address.rfind("Bo:", 0) != 0) continue;
-    const size_t colon = address.rfind(':');
-    if (std::strtol(address.c_str() + colon + 1, nullptr, 10) != kOutEndpoint) continue;
-    if (!(w >> status >> length_text >> equals) || equals != "=") continue;
+    // Bo:bus:device:endpoint, or Bo:device:endpoint (older kernels, one bus per file).
+    std::vector<long> fields;
+    for (size_t at = 3; at <= address.size();) {
+      const size_t next = std::min(address.find(':', at), address.size());
+      fields.push_back(std::strtol(address.substr(at, next - at).c_str(), nullptr, 10));
+      at = next + 1;
+    }
+    if (fields.size() < 2 || fields.back() != kOutEndpoint) continue;
+    if (!(w >> status >> length_text)) continue;
     CapturedTransfer t;
     t.length = static_cast<size_t>(std::strtoul(length_text.c_str(), nullptr, 10));
+    t.bus = fields.size() >= 3 ? static_cast<int>(fields[0]) : 0;
+    t.device = static_cast<int>(fields[fields.size() - 2]);
+    if (!(w >> equals) || equals != "=") {  // no data captured ('<', '>' or nothing)
+      out.push_back(std::move(t));
+      continue;
+    }
     std::string word;
     while (w >> word) {
       if (word.size() % 2 != 0 || word.size() > 8 ||
@@ -279,7 +298,39 @@ Result<std::vector<CapturedTransfer>> ReadCapture(const std::string& bytes,
   return ReadUsbmonText(bytes, name);
 }
 
-std::string DecodeTraffic(const std::vector<CapturedTransfer>& transfers) {
+std::string DecodeTraffic(const std::vector<CapturedTransfer>& all) {
+  // The board among the capture's devices (a capture of a whole bus holds a disk's or another
+  // device's bulk OUT endpoint 2 too): of the devices whose OUT transfers are all 12-byte
+  // commands or 3072-byte list packets, the one with the most; the others are named.
+  std::map<std::pair<int, int>, std::pair<size_t, bool>> devices;  // count, LMC-like
+  for (const CapturedTransfer& t : all) {
+    auto& [count, like] = devices.try_emplace({t.bus, t.device}, 0, true).first->second;
+    ++count;
+    like = like && (t.length == kCommandBytes || t.length == kPacketBytes);
+  }
+  std::pair<int, int> board{-1, -1};
+  size_t best = 0;
+  bool best_like = false;
+  for (const auto& [id, info] : devices) {
+    if ((info.second && !best_like) || (info.second == best_like && info.first > best)) {
+      board = id, best = info.first, best_like = info.second;
+    }
+  }
+  std::vector<CapturedTransfer> transfers;
+  for (const CapturedTransfer& t : all) {
+    if (std::make_pair(t.bus, t.device) == board) transfers.push_back(t);
+  }
+  std::string preamble;
+  if (devices.size() > 1) {
+    preamble = "# the board: bus " + std::to_string(board.first) + " device " +
+               std::to_string(board.second) + "; skipped:";
+    for (const auto& [id, info] : devices) {
+      if (id == board) continue;
+      preamble += " bus " + std::to_string(id.first) + " device " + std::to_string(id.second) +
+                  " (" + std::to_string(info.first) + " transfers)";
+    }
+    preamble += "\n";
+  }
   // The output in pieces: a list is written where its first packet came (the single commands
   // sent while it streamed and ran follow it), once its end is known.
   std::vector<std::string> pieces(1);
@@ -351,7 +402,7 @@ std::string DecodeTraffic(const std::vector<CapturedTransfer>& transfers) {
   }
   flush_run();
   end_list();
-  std::string out;
+  std::string out = preamble;
   for (const std::string& p : pieces) out += p;
   if (any_cut) {
     out +=

@@ -523,11 +523,21 @@ Result<BoardIdentity> StartUp(Transport& transport, const BoardOptions& options,
   id.version = *version;
   INSITU_ASSIGN_OR_RETURN(const auto commands, StartupCommands(options, table));
   uint8_t reply[kReplyBytes];
+  bool enabled = false;  // EnableLaser went out: a failure after it disables the output again
   for (const auto& c : commands) {
-    INSITU_RETURN_IF_ERROR(transport.Write(c.data(), c.size()).Prefixed("starting the board"));
-    if (Answered(c)) {
-      INSITU_RETURN_IF_ERROR(transport.Read(reply, sizeof reply).Prefixed("starting the board"));
+    Status sent = transport.Write(c.data(), c.size());
+    if (sent.ok() && Answered(c)) sent = transport.Read(reply, sizeof reply);
+    if (!sent.ok()) {
+      if (enabled) {
+        for (uint16_t op : {kFiberSetMo, kDisableLaser}) {  // best effort
+          const auto off = SingleCommand(op);
+          if (transport.Write(off.data(), off.size()).ok())
+            (void)transport.Read(reply, sizeof reply);
+        }
+      }
+      return sent;
     }
+    enabled = enabled || DecodeCommand(c.data())[0] == kEnableLaser;
   }
   // The analog outputs (the laser's power reference, the focus Z) settle.
   std::this_thread::sleep_for(std::chrono::milliseconds(50));

@@ -92,6 +92,7 @@ class BoardScanner : public Scanner {
   std::string ReceivedList() const override { return received_; }
 
   Status Arm() override {
+    received_.clear();  // a job's list to come: none received yet
     INSITU_RETURN_IF_ERROR(Single(kEnableLaser).status());
     armed_ = true;
     return Status::Ok();
@@ -104,6 +105,7 @@ class BoardScanner : public Scanner {
 
  protected:
   Status RunList(const GalvoList& list, const ListControl& control) override {
+    received_.clear();
     const bool marks = list.HasMarks();
     INSITU_RETURN_IF_ERROR(StopPointer());
     std::array<uint16_t, 2> position = position_;
@@ -245,7 +247,7 @@ class BoardScanner : public Scanner {
         return Status(StatusCode::kDeviceError, "the board stayed busy after its list was stopped");
       }
       const double running = std::chrono::duration<double>(now - run_start_).count();
-      if (options_.list_timeout_s > 0 && running > options_.list_timeout_s) {
+      if (limit_s == 0 && options_.list_timeout_s > 0 && running > options_.list_timeout_s) {
         return Status(StatusCode::kDeviceError, "the board was still busy after list_timeout_s (" +
                                                     std::to_string(options_.list_timeout_s) +
                                                     " s)");
@@ -258,9 +260,12 @@ class BoardScanner : public Scanner {
                       "(status word " +
                           std::to_string(status) + ")");
       }
-      // The board tells no progress: the list's own time estimate stands in, short of 1.
-      if (control != nullptr && control->progress && run_estimate_s_ > 0) {
+      // The board tells no progress: the list's own time estimate stands in, short of 1,
+      // about every 100 ms.
+      if (control != nullptr && control->progress && run_estimate_s_ > 0 &&
+          now - last_progress_ >= std::chrono::milliseconds(100)) {
         control->progress(std::min(0.99, running / run_estimate_s_));
+        last_progress_ = now;
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(options_.poll_ms));
     }
@@ -297,6 +302,7 @@ class BoardScanner : public Scanner {
   std::string received_;  // the last marking list as the board received it (ReceivedList)
   // The list running: when it started streaming and its time estimate (progress).
   std::chrono::steady_clock::time_point run_start_ = std::chrono::steady_clock::now();
+  std::chrono::steady_clock::time_point last_progress_{};
   double run_estimate_s_ = 0.0;
   bool armed_ = false;
   bool pointer_on_ = false;

@@ -339,6 +339,11 @@ struct SimBoard::Impl {
         ++log.resets;
         buffer.clear();
         list_open = false;
+        running = false;  // the runner has returned (Write joined it)
+        starved = false;
+        sweep_jump_delay_s = 0.0;
+        z_mm = 0.0;
+        world->StopPointer();
         startup_seen.clear();
         log.laser_enabled = false;
         log.mo_open = false;
@@ -466,8 +471,9 @@ Status SimBoard::Write(const uint8_t* data, size_t size) {
   std::unique_lock<std::mutex> lock(impl_->mutex);
   if (size == kCommandBytes) {
     const Command c = DecodeCommand(data);
-    if (c[0] == kStopExecute) {
-      // Stop waits for the head to come to rest (the runner sees the abort on its next tick).
+    if (c[0] == kStopExecute || c[0] == kReset) {
+      // Stop (and a reset) waits for the head to come to rest (the runner sees the abort on
+      // its next tick).
       impl_->abort = true;
       lock.unlock();
       impl_->Join();
