@@ -160,6 +160,8 @@ std::string FormatCommands(const std::vector<Command>& commands);
 // for most commands; GetSerialNo answers with four words of serial). Errors: device_error.
 Result<std::array<uint16_t, 4>> Query(Transport& transport, uint16_t op, uint16_t p1 = 0,
                                       uint16_t p2 = 0, uint16_t p3 = 0, uint16_t p4 = 0);
+// The same for a command already encoded (SingleCommand, GotoXY).
+Result<std::array<uint16_t, 4>> Query(Transport& transport, const std::vector<uint8_t>& bytes);
 
 // What the board says of itself when it opens.
 struct BoardIdentity {

@@ -455,7 +455,10 @@ namespace insitu::hw::lmc {
 
 Result<std::array<uint16_t, 4>> Query(Transport& transport, uint16_t op, uint16_t p1, uint16_t p2,
                                       uint16_t p3, uint16_t p4) {
-  const std::vector<uint8_t> bytes = SingleCommand(op, p1, p2, p3, p4);
+  return Query(transport, SingleCommand(op, p1, p2, p3, p4));
+}
+
+Result<std::array<uint16_t, 4>> Query(Transport& transport, const std::vector<uint8_t>& bytes) {
   INSITU_RETURN_IF_ERROR(transport.Write(bytes.data(), bytes.size()));
   uint8_t reply[kReplyBytes];
   INSITU_RETURN_IF_ERROR(transport.Read(reply, sizeof reply));

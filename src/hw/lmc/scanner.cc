@@ -157,10 +157,8 @@ class BoardScanner : public Scanner {
     return Single(SingleCommand(op, p1, p2, p3));
   }
   Result<uint16_t> Single(const std::vector<uint8_t>& bytes) {
-    INSITU_RETURN_IF_ERROR(transport_->Write(bytes.data(), bytes.size()));
-    uint8_t reply[kReplyBytes];
-    INSITU_RETURN_IF_ERROR(transport_->Read(reply, sizeof reply));
-    return static_cast<uint16_t>(reply[6] | (reply[7] << 8));
+    INSITU_ASSIGN_OR_RETURN(const auto words, Query(*transport_, bytes));
+    return words[3];
   }
 
   // Streams `commands` and waits until the board is no longer busy; the list's time estimate
